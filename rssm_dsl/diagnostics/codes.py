@@ -1,0 +1,94 @@
+"""The registry of diagnostic codes. Every code is documented in docs/diagnostics.md (a test
+checks that both agree)."""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+from enum import Enum
+
+
+class Severity(str, Enum):
+    ERROR = "error"
+    WARNING = "warning"
+    NOTE = "note"
+
+
+@dataclass(frozen=True, slots=True)
+class Code:
+    code: str
+    slug: str
+    severity: Severity
+    summary: str
+
+
+_E = Severity.ERROR
+_W = Severity.WARNING
+
+CODES: tuple[Code, ...] = (
+    # input and syntax
+    Code("E001", "file-not-found", _E, "the file does not exist or cannot be read"),
+    Code("E002", "not-a-file", _E, "the path is a directory or not a regular file"),
+    Code("E003", "not-text", _E, "the file is not UTF-8 text"),
+    Code("E004", "file-too-large", _E, "the file is larger than the compiler accepts"),
+    Code("E005", "syntax-error", _E, "unexpected token"),
+    Code("E006", "unexpected-character", _E, "a character that starts no token"),
+    Code("E007", "unexpected-eof", _E, "the file ends in the middle of a declaration"),
+    Code("E008", "nesting-too-deep", _E, "expressions or brackets nested too deeply"),
+    Code("E009", "import-not-found", _E, "an imported module cannot be found"),
+    Code("E010", "import-cycle", _E, "modules import each other in a cycle"),
+    # names
+    Code("E101", "duplicate-name", _E, "a name is declared twice in the same scope"),
+    Code("E102", "undefined-name", _E, "a name that is not declared"),
+    Code("E103", "wrong-kind", _E, "a name of the wrong kind of declaration"),
+    Code("E104", "no-system", _E, "the file declares no system, or more than one"),
+    # types
+    Code("E201", "type-mismatch", _E, "an expression of the wrong type"),
+    Code("E202", "unknown-type", _E, "a type name that is not declared"),
+    Code("E203", "bad-operand", _E, "an operator applied to operands it does not accept"),
+    Code("E204", "wrong-arity", _E, "a call with the wrong number of arguments"),
+    Code("E205", "not-assignable", _E, "an assignment to something that cannot be assigned"),
+    Code("E206", "bad-index", _E, "an index out of range or on a non-array"),
+    Code("E207", "unknown-field", _E, "a record field that does not exist"),
+    Code("E208", "bad-binding", _E, "an external binding is not of the form module:function"),
+    Code("E209", "bad-frequency", _E, "a frequency that is not positive"),
+    # structure (paper III-A)
+    Code("E301", "control-count", _E, "an agent needs exactly one control subsystem"),
+    Code("E302", "link-not-allowed", _E, "a link between subsystems the methodology forbids"),
+    Code("E303", "peer-not-found", _E, "a buffer names a peer subsystem that does not exist"),
+    Code("E304", "unpaired-buffer", _E, "a buffer with no matching buffer on its peer"),
+    Code("E305", "endpoint-type-mismatch", _E, "the two buffers of a channel have different types"),
+    Code("E306", "ambiguous-peer-buffer", _E, "several buffers of the peer could match"),
+    Code("E307", "missing-peer", _E, "a subsystem buffer must name its peer"),
+    Code("E308", "device-kind-mismatch", _E, "a device instance of the wrong kind"),
+    # canonical decomposition
+    Code("E401", "write-outside-target", _E, "a partial function writes outside its own target"),
+    Code("E402", "write-to-input", _E, "an input buffer is written"),
+    Code("E403", "duplicate-partial-function", _E, "two partial functions for one target"),
+    Code("E404", "unknown-update-target", _E, "an update of something that is neither an output buffer nor memory"),
+    # data availability
+    Code("E501", "cases-not-exhaustive", _E, "a data-availability combination no case covers"),
+    Code("E502", "cases-overlap", _E, "a data-availability combination two cases cover"),
+    Code("E503", "new-of-non-input", _E, "new() of something that is not an input buffer"),
+    Code("E504", "too-many-inputs", _E, "too many input buffers to enumerate the data cases"),
+    Code("E505", "new-outside-case", _E, "new() outside a data-availability case condition"),
+    Code("E506", "case-condition-not-data", _E, "a case condition that is not over new() only"),
+    # behaviours and the subsystem layer
+    Code("E601", "no-initial-behaviour", _E, "a subsystem without exactly one initial behaviour"),
+    Code("E602", "no-terminal-condition", _E, "a behaviour without a terminal condition"),
+    Code("E603", "switch-not-exhaustive", _E, "after a behaviour ends, no switch condition may hold"),
+    Code("W604", "switch-overlap", _W, "after a behaviour ends, two switch conditions may hold at once"),
+    Code("W605", "unreachable-behaviour", _W, "a behaviour no switch leads to"),
+    Code("E606", "arrangement-incomplete", _E, "a send or receive arrangement misses a buffer"),
+    Code("E607", "arrangement-duplicate", _E, "a buffer appears twice in an arrangement or not a buffer of that direction"),
+    Code("E608", "condition-out-of-scope", _E, "a terminal or error condition used outside the switches of its behaviour"),
+    Code("E609", "no-behaviours", _E, "a subsystem without behaviours"),
+    Code("E610", "duplicate-arrangement", _E, "two send or two receive declarations in a behaviour"),
+    # usage warnings
+    Code("W701", "unused-buffer", _W, "an input buffer never read or an output buffer never written"),
+    Code("W702", "unused-memory", _W, "a memory variable never read"),
+    Code("W703", "unused-param", _W, "a parameter never read"),
+    # internal
+    Code("E900", "internal-error", _E, "the compiler failed: please report it"),
+)
+
+BY_CODE: dict[str, Code] = {c.code: c for c in CODES}

@@ -1,0 +1,401 @@
+"""Build the five-layer HPN of a system (paper IV), plus the device nets that close it.
+
+Communication modes (DESIGN.md section 4): a channel is two fused places, `1` (full: data
+not yet taken) and `2` (empty), exactly one marked, `2` at start.
+  producer non-blocking: in+2 -> op | in+1 -> op (overwrite); op -> out+1
+  producer blocking:     in+2 -> op; op -> wait+1; wait+2 -> out+2 (waits until taken)
+  consumer blocking:     in+1 -> op; op -> out+2
+  consumer non-blocking: in+1 -> op; op -> out+2 | in+2 -> out+2 (nothing new)
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass, field
+
+from rssm_dsl.hpn import names as N
+from rssm_dsl.hpn.flat import Role
+from rssm_dsl.hpn.ir import (
+    HPN, Arc, CondKind, Condition, FusionSet, OpKind, Operation, Page, PageKind, Place,
+    Transition,
+)
+from rssm_dsl.semantics.behaviours import combination_text
+from rssm_dsl.semantics.model import (
+    ArrLeaf, ArrPar, Arrangement, ArrSeq, Behaviour, Buffer, Channel, Device, PartialFunction,
+    Subsystem, System,
+)
+from rssm_dsl.source import Span
+from rssm_dsl.syntax import ast
+from rssm_dsl.syntax.printer import expr_text, stmt_text
+
+
+@dataclass
+class _Endpoint:
+    """One side of a channel as seen from a subsystem or device: its fused places."""
+
+    full: list[str] = field(default_factory=list)
+    empty: list[str] = field(default_factory=list)
+
+
+@dataclass(frozen=True)
+class _Owner:
+    """A subsystem or a device, as the builder needs it."""
+
+    id: str
+    sup: str            # "" for designed subsystems, "^E"/"^R" for devices
+    j: str
+    v: str
+    inputs: tuple[Buffer, ...]
+    outputs: tuple[Buffer, ...]
+
+
+class HpnBuilder:
+    def __init__(self, system: System) -> None:
+        self.s = system
+        self.h = HPN(system.name, root="H")
+        self.channel_of: dict[str, Channel] = {}
+        for ch in system.channels:
+            self.channel_of[ch.producer.qualified] = ch
+            self.channel_of[ch.consumer.qualified] = ch
+        self.ends: dict[tuple[str, str], _Endpoint] = {}  # (channel id, side) -> fused places
+        self._counter: dict[str, int] = {}
+
+    # ------------------------------------------------------------------ primitives
+    def _page(self, pid: str, kind: PageKind, parent: str | None, span: Span, label: str,
+              owner: str, in_id: str, out_id: str, behaviour: str | None = None,
+              initial: bool = False) -> str:
+        self.h.pages[pid] = Page(pid, kind, parent, in_id, out_id, span, label, owner, behaviour)
+        self._place(in_id, pid, span, f"{label}: start", initial=initial)
+        self._place(out_id, pid, span, f"{label}: end")
+        return pid
+
+    def _place(self, pid: str, page: str, span: Span, label: str, op: Operation | None = None,
+               initial: bool = False, fusion: str | None = None) -> str:
+        assert pid not in self.h.places, pid
+        self.h.places[pid] = Place(pid, page, span, label, op, fusion, initial)
+        return pid
+
+    def _trans(self, tid: str, page: str, span: Span, label: str, role: Role = Role.STRUCTURE,
+               cond: Condition | None = None) -> str:
+        assert tid not in self.h.transitions, tid
+        self.h.transitions[tid] = Transition(tid, page, span, label, role, cond)
+        return tid
+
+    def _arcs(self, page: str, sources: list[str], t: str, targets: list[str]) -> None:
+        for s in sources:
+            self.h.arcs.append(Arc(page, s, t))
+        for d in targets:
+            self.h.arcs.append(Arc(page, t, d))
+
+    # ------------------------------------------------------------------ layers 1-3
+    def build(self) -> HPN:
+        s = self.s
+        root = self._page("H", PageKind.SYSTEM, None, s.span, f"system {s.name}", s.name,
+                          N.place("in"), N.place("out"), initial=True)
+        agent_pages = [self._agent(a.name, a.designator, a.subsystems, a.span, root)
+                       for a in s.agents]
+        self._trans(N.transition("in"), root, s.span, f"system {s.name} starts")
+        self._trans(N.transition("out"), root, s.span, f"system {s.name} ends")
+        self._arcs(root, [N.place("in")], N.transition("in"), agent_pages)
+        self._arcs(root, agent_pages, N.transition("out"), [N.place("out")])
+        for a in s.agents:
+            for d in a.devices:
+                self._device(d, a.designator)
+        self._fusions()
+        return self.h
+
+    def _agent(self, name: str, j: str, subsystems: tuple[Subsystem, ...], span: Span,
+               parent: str) -> str:
+        pid = self._page(N.page(j), PageKind.AGENT, parent, span, f"agent {name}", name,
+                         N.place(j, "in"), N.place(j, "out"))
+        sub_pages = [self._subsystem(sub, j, pid) for sub in subsystems]
+        t_in = self._trans(N.transition(j, "in"), pid, span, f"agent {name} starts")
+        t_out = self._trans(N.transition(j, "out"), pid, span, f"agent {name} ends")
+        self._arcs(pid, [N.place(j, "in")], t_in, sub_pages)
+        self._arcs(pid, sub_pages, t_out, [N.place(j, "out")])
+        return pid
+
+    def _owner(self, sub: Subsystem | Device, j: str) -> _Owner:
+        sup = "" if isinstance(sub, Subsystem) else f"^{sub.letter}"
+        return _Owner(sub.id, sup, j, sub.name, sub.inputs, sub.outputs)
+
+    def _subsystem(self, sub: Subsystem, j: str, parent: str) -> str:
+        v = sub.name
+        pid = self._page(N.page(j, v), PageKind.SUBSYSTEM, parent, sub.span, sub.id, sub.id,
+                         N.place(j, v, "in"), N.place(j, v, "out"))
+        owner = self._owner(sub, j)
+        pages = {b.name: self._behaviour(sub, owner, b, pid) for b in sub.behaviours}
+        for sw in sub.switches:
+            if sw.source is None:
+                t = self._trans(N.transition(j, v, "in"), pid, sw.span,
+                                f"{sub.id} starts in behaviour {sw.target}", Role.SWITCH)
+                self._arcs(pid, [N.place(j, v, "in")], t, [pages[str(sw.target)]])
+                continue
+            text = "otherwise" if sw.condition is None else expr_text(sw.condition)
+            constant = (sw.condition.value if isinstance(sw.condition, ast.Literal)
+                        and isinstance(sw.condition.value, bool) else None)
+            cond = Condition(CondKind.SWITCH, sub.id, text, sw.source, switch=sw.index,
+                             constant=True if sw.condition is None else constant)
+            target = pages[sw.target] if sw.target is not None else N.place(j, v, "out")
+            where = f"behaviour {sw.target}" if sw.target is not None else "the end"
+            t = self._trans(N.transition(j, v, sw.index), pid, sw.span,
+                            f"{sub.id} switches from {sw.source} to {where} [{text}]",
+                            Role.SWITCH, cond)
+            self._arcs(pid, [pages[sw.source]], t, [target])
+        return pid
+
+    # ------------------------------------------------------------------ layer 4
+    def _behaviour(self, sub: Subsystem, o: _Owner, b: Behaviour, parent: str) -> str:
+        j, v, w = o.j, o.v, b.name
+        who = f"{sub.id} ({w})"
+        pid = self._page(N.page(j, v, w, sup="^B"), PageKind.BEHAVIOUR, parent, b.span,
+                         f"{sub.id} behaviour {w}", sub.id, N.place(j, v, w, "in"),
+                         N.place(j, v, w, "out"), w)
+        p2 = self._place(N.place(j, v, w, 2), pid, b.span, f"{who} i := i + 1",
+                         Operation(OpKind.INCREMENT, sub.id, "i := i + 1", w))
+        f_page = self._function(sub, o, b, pid)
+        snd = self._comm(o, b.send, "snd", pid, b.span, w) if b.send is not None else None
+        rcv = self._comm(o, b.receive, "rcv", pid, b.span, w) if b.receive is not None else None
+        self._arcs(pid, [N.place(j, v, w, "in")],
+                   self._trans(N.transition(j, v, w, "in"), pid, b.span, f"{who} begins"),
+                   [f_page])
+        t1 = self._trans(N.transition(j, v, w, 1), pid, b.span, f"{who} has computed f")
+        if snd is not None:
+            self._arcs(pid, [f_page], t1, [snd])
+            t2 = self._trans(N.transition(j, v, w, 2), pid, b.span, f"{who} has sent")
+            self._arcs(pid, [snd], t2, [p2])
+        else:
+            self._arcs(pid, [f_page], t1, [p2])
+        last = p2
+        if rcv is not None:
+            t3 = self._trans(N.transition(j, v, w, 3), pid, b.span, f"{who} receives")
+            self._arcs(pid, [p2], t3, [rcv])
+            last = rcv
+        conds = b.conditions
+        stop_text = " or ".join(c.name for c in conds) or "false"
+        live = [c for c in conds if not c.never]
+        always = any(isinstance(c.expr, ast.Literal) and c.expr.value is True for c in conds)
+        t4 = self._trans(
+            N.transition(j, v, w, 4), pid, b.span, f"{who} iterates",
+            Role.ITERATION, Condition(CondKind.CONTINUE, sub.id, f"not ({stop_text})", w,
+                                      constant=False if always else (True if not live else None)),
+        )
+        self._arcs(pid, [last], t4, [f_page])
+        t_out = self._trans(
+            N.transition(j, v, w, "out"), pid, b.span, f"{who} ends [{stop_text}]",
+            Role.ITERATION, Condition(CondKind.STOP, sub.id, stop_text, w,
+                                      constant=True if always else (False if not live else None)),
+        )
+        self._arcs(pid, [last], t_out, [N.place(j, v, w, "out")])
+        return pid
+
+    # ------------------------------------------------------------------ layer 5: f
+    def _function(self, sub: Subsystem, o: _Owner, b: Behaviour, parent: str) -> str:
+        j, v, w = o.j, o.v, b.name
+        pid = self._page(N.page(j, v, w, sup="^f"), PageKind.FUNCTION, parent, b.span,
+                         f"{sub.id} ({w}) transition function", sub.id,
+                         N.place(j, v, w, "f", "in"), N.place(j, v, w, "f", "out"), w)
+        parts = [self._partial(sub, o, b, pf, pid) for pf in b.functions]
+        fork = self._trans(N.transition(j, v, w, "f", "in"), pid, b.span,
+                           f"{sub.id} ({w}) starts its partial functions")
+        join = self._trans(N.transition(j, v, w, "f", "out"), pid, b.span,
+                           f"{sub.id} ({w}) has computed every partial function")
+        self._arcs(pid, [N.place(j, v, w, "f", "in")], fork, parts)
+        self._arcs(pid, parts, join, [N.place(j, v, w, "f", "out")])
+        return pid
+
+    def _partial(self, sub: Subsystem, o: _Owner, b: Behaviour, pf: PartialFunction,
+                 parent: str) -> str:
+        j, v, w, psi = o.j, o.v, b.name, pf.index
+        who = f"{sub.id} ({w})"
+        pid = self._page(N.page(j, v, w, psi, sup="^f"), PageKind.PARTIAL, parent, pf.span,
+                         f"{who} partial function for {pf.target}", sub.id,
+                         N.place(j, v, w, psi, "in"), N.place(j, v, w, psi, "out"), w)
+        inputs = tuple(x.name for x in sub.inputs)
+        for case in pf.cases:
+            when = combination_text(inputs, case.new)
+            body = "; ".join(stmt_text(st) for st in case.body) or "skip"
+            op = Operation(OpKind.CASE, sub.id, body, w, pf.target, case.index, void=case.void)
+            p = self._place(N.place(j, v, w, psi, case.index), pid, case.span,
+                            f"{who} {pf.target}: {body}", op)
+            t_case = self._trans(
+                N.transition(j, v, w, psi, case.index), pid, case.span,
+                f"{who} computes {pf.target} when {when}", Role.CASE,
+                Condition(CondKind.CASE, sub.id, when, w, new=case.new),
+            )
+            self._arcs(pid, [N.place(j, v, w, psi, "in")], t_case, [p])
+            t_done = self._trans(N.transition(j, v, w, psi, case.index, "out"), pid, case.span,
+                                 f"{who} has computed {pf.target}")
+            self._arcs(pid, [p], t_done, [N.place(j, v, w, psi, "out")])
+        return pid
+
+    # ------------------------------------------------------------------ layer 5: snd/rcv
+    def _comm(self, o: _Owner, arr: Arrangement, verb: str, parent: str, span: Span,
+              w: str | None) -> str:
+        """The arrangement sublayer page (P_snd / P_rcv) and its per-buffer mode pages."""
+        base = (o.j, o.v, w, verb) if w is not None else (o.j, o.v, verb)
+        who = f"{o.id} ({w})" if w is not None else o.id
+        kind = PageKind.SEND if verb == "snd" else PageKind.RECEIVE
+        pid = self._page(N.page(*base, sup=o.sup or "^B"), kind, parent, span,
+                         f"{who} {'sends' if verb == 'snd' else 'receives'}", o.id,
+                         N.place(*base, "in", sup=o.sup), N.place(*base, "out", sup=o.sup), w)
+        buffers = o.outputs if verb == "snd" else o.inputs
+        index = {b.name: i for i, b in enumerate(buffers, start=1)}
+        counter = [0]
+
+        def internal(span: Span) -> str:
+            counter[0] += 1
+            return self._trans(N.transition(*base, f"a{counter[0]}", sup=o.sup), pid, span,
+                               f"{who} continues {'sending' if verb == 'snd' else 'receiving'}")
+
+        def emit(a: Arrangement) -> tuple[list[str], list[str]]:
+            match a:
+                case ArrLeaf():
+                    buf = next(b for b in buffers if b.name == a.buffer)
+                    page = self._mode_page(o, buf, verb, index[a.buffer], pid, base, who, w)
+                    return [page], [page]
+                case ArrPar():
+                    starts: list[str] = []
+                    ends: list[str] = []
+                    for item in a.items:
+                        s, e = emit(item)
+                        starts += s
+                        ends += e
+                    return starts, ends
+                case ArrSeq():
+                    first_s, prev_e = emit(a.items[0])
+                    for item in a.items[1:]:
+                        s, e = emit(item)
+                        self._arcs(pid, prev_e, internal(item.span), s)
+                        prev_e = e
+                    return first_s, prev_e
+
+        starts, ends = emit(arr)
+        t_in = self._trans(N.transition(*base, "in", sup=o.sup), pid, span, f"{who} starts "
+                           f"{'sending' if verb == 'snd' else 'receiving'}")
+        t_out = self._trans(N.transition(*base, "out", sup=o.sup), pid, span, f"{who} has "
+                            f"{'sent' if verb == 'snd' else 'received'} everything")
+        self._arcs(pid, [N.place(*base, "in", sup=o.sup)], t_in, starts)
+        self._arcs(pid, ends, t_out, [N.place(*base, "out", sup=o.sup)])
+        return pid
+
+    def _mode_page(self, o: _Owner, buf: Buffer, verb: str, k: int, parent: str,
+                   base: tuple[object, ...], who: str, w: str | None) -> str:
+        ch = self.channel_of.get(buf.qualified)
+        kind = PageKind.SEND_BUFFER if verb == "snd" else PageKind.RECEIVE_BUFFER
+        pb = (*base, k)
+        sup = o.sup
+        pid = self._page(N.page(*pb, sup=sup or "^B"), kind, parent, buf.span,
+                         f"{who} {'sends' if verb == 'snd' else 'receives'} {buf.name} "
+                         f"({buf.mode.value})", o.id, N.place(*pb, "in", sup=sup),
+                         N.place(*pb, "out", sup=sup), w)
+        p_in, p_out = N.place(*pb, "in", sup=sup), N.place(*pb, "out", sup=sup)
+        if ch is None:  # an unconnected device buffer: the page passes straight through
+            self._arcs(pid, [p_in], self._trans(N.transition(*pb, 1, sup=sup), pid, buf.span,
+                                                f"{who} skips unconnected {buf.name}"), [p_out])
+            return pid
+        side = "producer" if verb == "snd" else "consumer"
+        ends = self.ends.setdefault((ch.id, side), _Endpoint())
+        chan = f"channel {ch.producer.qualified} -> {ch.consumer.qualified}"
+        full = self._place(N.place(*pb, 1, sup=sup), pid, buf.span, f"{chan}: full")
+        empty = self._place(N.place(*pb, 2, sup=sup), pid, buf.span, f"{chan}: empty")
+        ends.full.append(full)
+        ends.empty.append(empty)
+        op_kind = OpKind.SEND if verb == "snd" else OpKind.RECEIVE
+        op = self._place(N.place(*pb, "op", sup=sup), pid, buf.span,
+                         f"{who} {'sends' if verb == 'snd' else 'receives'} {buf.name}",
+                         Operation(op_kind, o.id, f"{verb} {buf.name}", w, buf.name,
+                                   channel=ch.id))
+
+        def t(n: int, label: str, role: Role) -> str:
+            return self._trans(N.transition(*pb, n, sup=sup), pid, buf.span, f"{who} {label}", role)
+
+        mode = buf.mode
+        if verb == "snd":
+            r = Role.SEND
+            self._arcs(pid, [p_in, empty], t(1, f"starts sending {buf.name} ({mode.value}, "
+                                                f"{chan} empty)", r), [op])
+            if mode is ast.Mode.NONBLOCKING:
+                self._arcs(pid, [p_in, full], t(2, f"overwrites unread {buf.name} "
+                                                   "(nonblocking)", r), [op])
+                self._arcs(pid, [op], t(3, f"has sent {buf.name}", r), [p_out, full])
+            else:
+                wait = self._place(N.place(*pb, "wait", sup=sup), pid, buf.span,
+                                   f"{who} waits in blocking send of {buf.name} on {chan}")
+                self._arcs(pid, [op], t(3, f"has sent {buf.name}, waits until it is taken", r),
+                           [wait, full])
+                self._arcs(pid, [wait, empty], t(4, f"sees {buf.name} taken (blocking)", r),
+                           [p_out, empty])
+        else:
+            r = Role.RECEIVE
+            self._arcs(pid, [p_in, full], t(1, f"takes new {buf.name} ({mode.value})", r), [op])
+            self._arcs(pid, [op], t(2, f"has received {buf.name}", r), [p_out, empty])
+            if mode is ast.Mode.NONBLOCKING:
+                self._arcs(pid, [p_in, empty], t(3, f"finds no new {buf.name} (nonblocking)", r),
+                           [p_out, empty])
+        return pid
+
+    # ------------------------------------------------------------------ devices
+    def _device(self, d: Device, j: str) -> None:
+        o = self._owner(d, j)
+        sup, v = o.sup, d.name
+        label = f"device {d.id} ({d.device_type})"
+        pid = self._page(N.page(j, v, sup=sup), PageKind.DEVICE, None, d.span, label, d.id,
+                         N.place(j, v, "in", sup=sup), N.place(j, v, "out", sup=sup),
+                         initial=True)
+        self.h.devices.append(pid)
+        op = self._place(N.place(j, v, "op", sup=sup), pid, d.span, f"{d.id} steps",
+                         Operation(OpKind.DEVICE, d.id, f"step {d.device_type}"))
+
+        def seq(buffers: tuple[Buffer, ...]) -> Arrangement:
+            leaves = tuple(ArrLeaf(b.name, b.span) for b in buffers)
+            return leaves[0] if len(leaves) == 1 else ArrSeq(leaves, d.span)
+
+        rcv = self._comm(o, seq(d.inputs), "rcv", pid, d.span, None) if d.inputs else None
+        snd = self._comm(o, seq(d.outputs), "snd", pid, d.span, None) if d.outputs else None
+        first = rcv or op
+        self._arcs(pid, [N.place(j, v, "in", sup=sup)],
+                   self._trans(N.transition(j, v, "in", sup=sup), pid, d.span, f"{d.id} starts",
+                               Role.DEVICE), [first])
+        if rcv is not None:
+            self._arcs(pid, [rcv], self._trans(N.transition(j, v, 1, sup=sup), pid, d.span,
+                                               f"{d.id} has received", Role.DEVICE), [op])
+        last = op
+        if snd is not None:
+            self._arcs(pid, [op], self._trans(N.transition(j, v, 2, sup=sup), pid, d.span,
+                                              f"{d.id} has stepped", Role.DEVICE), [snd])
+            last = snd
+        self._arcs(pid, [last], self._trans(N.transition(j, v, 4, sup=sup), pid, d.span,
+                                            f"{d.id} loops", Role.ITERATION), [first])
+
+    # ------------------------------------------------------------------ fusion sets
+    def _fusions(self) -> None:
+        by_id = {s.id: s for s in self.s.subsystems()} | {d.id: d for d in self.s.devices()}
+        j_of = {x.id: a.designator for a in self.s.agents for x in (*a.subsystems, *a.devices)}
+        for ch in self.s.channels:
+            prod, cons = by_id[ch.producer.owner], by_id[ch.consumer.owner]
+            rho = [b.name for b in prod.outputs].index(ch.producer.name) + 1
+            kappa = [b.name for b in cons.inputs].index(ch.consumer.name) + 1
+            p_ends = self.ends.get((ch.id, "producer"), _Endpoint())
+            c_ends = self.ends.get((ch.id, "consumer"), _Endpoint())
+            chan = f"channel {ch.producer.qualified} -> {ch.consumer.qualified} ({ch.modes})"
+            for which, members, initial, state in (
+                (1, p_ends.full + c_ends.full, False, "full"),
+                (2, p_ends.empty + c_ends.empty, True, "empty"),
+            ):
+                fid = N.fusion((j_of[prod.id], j_of[cons.id]), (_v(prod), _v(cons)),
+                               (rho, kappa), which)
+                self.h.fusions[fid] = FusionSet(fid, f"{chan}: {state}", ch.id, tuple(members),
+                                                initial, ch.producer.span)
+                for m in members:
+                    old = self.h.places[m]
+                    self.h.places[m] = Place(old.id, old.page, old.span, old.label, old.operation,
+                                             fid, initial)
+
+
+def _v(x: Subsystem | Device) -> str:
+    """The designator in a fused place's name: v for a subsystem, E.h / R.l for a device."""
+    return x.name if isinstance(x, Subsystem) else f"{x.letter}.{x.name}"
+
+
+def build_hpn(system: System) -> HPN:
+    return HpnBuilder(system).build()

@@ -1,0 +1,88 @@
+"""The flattened HPN: a plain safe place/transition net, with its bindings kept.
+
+This is the interface between the compiler and its consumers (verifier, interpreter,
+exports). Pages are gone (arcs into a page go to its input place, arcs out of it leave
+from its output place) and every fusion set is one place. Each element remembers the IR
+elements it came from, its name in the paper's notation and the span of the user's text.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass, field
+from enum import Enum
+
+from rssm_dsl.source import Span
+
+
+class Role(str, Enum):
+    """What a flat transition means for the system, used to word counterexamples and progress."""
+
+    STRUCTURE = "structure"        # layer plumbing: t_in, t_out, forks, joins
+    ITERATION = "iteration"        # t_4 / t_out of a behaviour page: one iteration completed
+    SWITCH = "switch"              # subsystem layer: initial condition f^sigma, behaviour switch
+    CASE = "case"                  # data-availability case of a partial transition function
+    SEND = "send"                  # mode sublayer, producer side
+    RECEIVE = "receive"            # mode sublayer, consumer side
+    DEVICE = "device"              # device loop
+
+
+@dataclass(frozen=True, slots=True)
+class FlatPlace:
+    index: int
+    name: str                      # paper notation; for a fusion set, the fused place's name
+    label: str                     # in the user's words, e.g. "channel a1.c.cmd -> a1.lwr.cmd: full"
+    span: Span
+    origin: tuple[str, ...]        # ids of the IR places merged into this one
+    operation: str | None = None   # id of the operation bound to the place, if any
+    subsystem: str | None = None   # qualified subsystem ("a1.c") owning the place; None if shared
+    behaviour: str | None = None   # behaviour owning the place, if any
+    channel: str | None = None     # channel id for fusion places of a channel
+
+
+@dataclass(frozen=True, slots=True)
+class FlatTransition:
+    index: int
+    name: str
+    label: str
+    span: Span
+    pre: tuple[int, ...]           # input places (sorted, no duplicates)
+    post: tuple[int, ...]          # output places (sorted, no duplicates)
+    role: Role = Role.STRUCTURE
+    condition: str | None = None   # id of the condition bound to the transition; None = true
+    subsystem: str | None = None
+    behaviour: str | None = None
+    channel: str | None = None
+
+
+@dataclass(frozen=True)
+class FlatNet:
+    """A safe P/T net. Markings are sets of place indices (at most one token per place)."""
+
+    system: str
+    places: tuple[FlatPlace, ...]
+    transitions: tuple[FlatTransition, ...]
+    initial: frozenset[int]
+    final: frozenset[int]          # places whose marking means the system finished
+    subsystems: tuple[str, ...] = field(default=())  # qualified names, for progress checks
+
+    def place(self, name: str) -> FlatPlace:
+        for p in self.places:
+            if p.name == name:
+                return p
+        raise KeyError(name)
+
+    def transition(self, name: str) -> FlatTransition:
+        for t in self.transitions:
+            if t.name == name:
+                return t
+        raise KeyError(name)
+
+    def incidence(self) -> list[list[int]]:
+        """Incidence matrix C[p][t] = post - pre."""
+        c = [[0] * len(self.transitions) for _ in self.places]
+        for t in self.transitions:
+            for p in t.pre:
+                c[p][t.index] -= 1
+            for p in t.post:
+                c[p][t.index] += 1
+        return c

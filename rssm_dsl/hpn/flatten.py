@@ -1,0 +1,73 @@
+"""Flatten the HPN into a plain safe P/T net: an arc into a page goes to its input place,
+an arc out of a page leaves from its output place, a fusion set is one place, and a
+transition whose condition is constant false (e.g. t_out of `terminal never when false`)
+is left out. Conditions on data become free choices for the verifier."""
+
+from __future__ import annotations
+
+from rssm_dsl.hpn.flat import FlatNet, FlatPlace, FlatTransition
+from rssm_dsl.hpn.ir import HPN
+
+
+def _subsystem_of(hpn: HPN, page: str) -> tuple[str | None, str | None]:
+    p = hpn.pages[page]
+    if p.kind.value in ("system", "agent"):
+        return None, None
+    return p.owner, p.behaviour
+
+
+def flatten(hpn: HPN) -> FlatNet:
+    flat_of: dict[str, str] = {}
+    for pid, place in hpn.places.items():
+        flat_of[pid] = place.fusion or pid
+    names = sorted(set(flat_of.values()))
+    index = {n: i for i, n in enumerate(names)}
+
+    places: list[FlatPlace] = []
+    for n in names:
+        if n in hpn.fusions:
+            fs = hpn.fusions[n]
+            places.append(FlatPlace(index[n], n, fs.label, fs.span, fs.places, None, None, None,
+                                    fs.channel))
+            continue
+        p = hpn.places[n]
+        sub, beh = _subsystem_of(hpn, p.page)
+        op = p.operation
+        places.append(FlatPlace(index[n], n, p.label, p.span, (n,),
+                                n if op is not None else None, sub, beh,
+                                op.channel if op is not None else None))
+
+    def resolve(node: str, entering: bool) -> str:
+        while node in hpn.pages:
+            page = hpn.pages[node]
+            node = page.in_place if entering else page.out_place
+        return flat_of[node]
+
+    pre: dict[str, set[int]] = {t: set() for t in hpn.transitions}
+    post: dict[str, set[int]] = {t: set() for t in hpn.transitions}
+    for a in hpn.arcs:
+        if a.target in pre:
+            pre[a.target].add(index[resolve(a.source, entering=False)])
+        else:
+            post[a.source].add(index[resolve(a.target, entering=True)])
+
+    transitions: list[FlatTransition] = []
+    for tid in sorted(hpn.transitions):
+        t = hpn.transitions[tid]
+        if t.condition is not None and t.condition.constant is False:
+            continue
+        sub, beh = _subsystem_of(hpn, t.page)
+        channel = None
+        for pl in pre[tid] | post[tid]:
+            channel = channel or places[pl].channel
+        transitions.append(FlatTransition(
+            len(transitions), tid, t.label, t.span, tuple(sorted(pre[tid])),
+            tuple(sorted(post[tid])), t.role, tid if t.condition is not None else None,
+            sub, beh, channel,
+        ))
+
+    initial = frozenset(index[flat_of[p.id]] for p in hpn.places.values() if p.initial)
+    final = frozenset({index[flat_of[hpn.pages[hpn.root].out_place]]})
+    subsystems = tuple(sorted({p.owner for p in hpn.pages.values()
+                               if p.kind.value in ("subsystem", "device")}))
+    return FlatNet(hpn.system, tuple(places), tuple(transitions), initial, final, subsystems)

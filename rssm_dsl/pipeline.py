@@ -1,0 +1,42 @@
+"""The compiler pipeline: load and parse -> analyze -> build the HPN -> (backends)."""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+from pathlib import Path
+
+from rssm_dsl.diagnostics import Diagnostic, DiagnosticBag
+from rssm_dsl.hpn.build import build_hpn
+from rssm_dsl.hpn.ir import HPN
+from rssm_dsl.semantics.analyze import analyze
+from rssm_dsl.semantics.loader import Loader, Program
+from rssm_dsl.semantics.model import System
+from rssm_dsl.source import Span
+
+
+@dataclass(frozen=True)
+class Compilation:
+    path: Path
+    program: Program
+    system: System | None
+    hpn: HPN | None
+    diagnostics: tuple[Diagnostic, ...]
+
+    @property
+    def ok(self) -> bool:
+        return not any(d.is_error for d in self.diagnostics)
+
+
+def compile_file(path: Path, overrides: dict[Path, str] | None = None,
+                 build: bool = True) -> Compilation:
+    """Compile one root file. Never raises on bad input: problems are diagnostics."""
+    bag = DiagnosticBag()
+    at = Span(str(path), 1, 1, 1, 1)
+    program = Loader(bag, overrides).load_root(path, at)
+    system = None
+    if not bag.has_errors:
+        system = analyze(program, bag)
+    hpn = None
+    if build and system is not None and not bag.has_errors:
+        hpn = build_hpn(system)
+    return Compilation(path, program, system, hpn, tuple(bag.sorted()))

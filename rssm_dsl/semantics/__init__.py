@@ -1,0 +1,1 @@
+"""Semantic analysis: names, types, structure, behaviours and the structural checks."""

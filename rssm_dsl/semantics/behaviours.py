@@ -1,0 +1,404 @@
+"""Behaviours of a subsystem: partial transition functions (canonical decomposition) split
+into data-availability cases, terminal/error conditions, send/receive arrangements, and the
+switches of the subsystem layer."""
+
+from __future__ import annotations
+
+from dataclasses import dataclass, field
+
+from rssm_dsl.diagnostics import DiagnosticBag, Related
+from rssm_dsl.semantics.declarations import Globals
+from rssm_dsl.semantics.model import (
+    ArrLeaf, ArrPar, ArrSeq, Arrangement, Behaviour, Buffer, Condition, DataCase,
+    PartialFunction, Switch,
+)
+from rssm_dsl.semantics.structure import Shell
+from rssm_dsl.semantics.typecheck import ExprChecker, Scope, Symbol
+from rssm_dsl.semantics.types import BOOL, Type, assignable
+from rssm_dsl.source import Span
+from rssm_dsl.syntax import ast
+
+MAX_INPUTS = 12
+MEMORY = "memory"
+
+
+def combination_text(inputs: tuple[str, ...], new: tuple[bool, ...]) -> str:
+    if not inputs:
+        return "(no inputs)"
+    return " and ".join(f"new({n})" if v else f"not new({n})" for n, v in zip(inputs, new, strict=True))
+
+
+def combinations(n: int) -> list[tuple[bool, ...]]:
+    """All 2^n combinations of new(x), ordered as the paper's Eq. 5: varpi = 1 is all new,
+    and the first input varies fastest."""
+    return [tuple(not (k >> i) & 1 for i in range(n)) for k in range(2**n)]
+
+
+class _NotData(Exception):
+    def __init__(self, span: Span) -> None:
+        self.span = span
+
+
+def eval_availability(e: ast.Expr, inputs: tuple[str, ...], new: tuple[bool, ...]) -> bool:
+    """Evaluate a case condition made of new(x), and/or/not, true/false."""
+    match e:
+        case ast.Literal(value=bool() as v):
+            return v
+        case ast.Call(function="new", args=(ast.Name(name=n),)) if n in inputs:
+            return new[inputs.index(n)]
+        case ast.Unary(op="not", operand=x):
+            return not eval_availability(x, inputs, new)
+        case ast.Binary(op="and", left=a, right=b):
+            return eval_availability(a, inputs, new) and eval_availability(b, inputs, new)
+        case ast.Binary(op="or", left=a, right=b):
+            return eval_availability(a, inputs, new) or eval_availability(b, inputs, new)
+    raise _NotData(e.span)
+
+
+@dataclass
+class SubsystemUsage:
+    reads: set[str] = field(default_factory=set)
+    written: set[str] = field(default_factory=set)
+
+
+class BehaviourPass:
+    def __init__(self, bag: DiagnosticBag, g: Globals, shell: Shell) -> None:
+        self.bag = bag
+        self.g = g
+        self.shell = shell
+        self.checker = ExprChecker(bag)
+        self.usage = SubsystemUsage()
+        self.inputs: tuple[Buffer, ...] = tuple(shell.inputs())
+        self.outputs: tuple[Buffer, ...] = tuple(shell.outputs())
+        self.input_names = tuple(b.name for b in self.inputs)
+        syms = g.symbols()
+        for v in shell.params:
+            syms[v.name] = Symbol("param", v.type, v.span)
+        for v in shell.memory:
+            syms[v.name] = Symbol("memory", v.type, v.span)
+        for b in shell.buffers:
+            syms[b.name] = Symbol(b.direction.value, b.type, b.span)
+        self.symbols = syms
+        self.all_conditions: dict[str, str] = {}  # condition name -> behaviour
+
+    def scope(self, new_allowed: bool = False) -> Scope:
+        return Scope(self.symbols, self.g.externs, new_allowed, self.input_names,
+                     reads=self.usage.reads)
+
+    # ------------------------------------------------------------------ entry
+    def run(self, decl: ast.SubsystemDecl) -> tuple[tuple[Behaviour, ...], tuple[Switch, ...]]:
+        behaviours: list[Behaviour] = []
+        seen: dict[str, Span] = {}
+        if not decl.behaviours:
+            self.bag.error("E609", f"{self.shell.id} has no behaviours", decl.name_span,
+                           "add `behaviour NAME { ... }` and `initial NAME`")
+        for bd in decl.behaviours:
+            for c in bd.conditions:
+                self.all_conditions.setdefault(c.name, bd.name)
+        for bd in decl.behaviours:
+            if bd.name in seen:
+                self.bag.error("E101", f"behaviour '{bd.name}' is declared twice", bd.name_span,
+                               related=(Related(seen[bd.name], "first declared here"),))
+                continue
+            if bd.name == "end":
+                self.bag.error("E101", "'end' names the end of the subsystem; choose another "
+                               "behaviour name", bd.name_span)
+                continue
+            seen[bd.name] = bd.name_span
+            behaviours.append(self._behaviour(bd))
+        switches = self._switches(decl, {b.name: b for b in behaviours})
+        return tuple(behaviours), switches
+
+    # ------------------------------------------------------------------ behaviour
+    def _behaviour(self, bd: ast.BehaviourDecl) -> Behaviour:
+        updates: dict[str, ast.UpdateDecl] = {}
+        out_names = {b.name for b in self.outputs}
+        for u in bd.updates:
+            if u.target in updates:
+                self.bag.error("E403", f"two partial functions for '{u.target}' in behaviour "
+                               f"'{bd.name}'", u.target_span,
+                               related=(Related(updates[u.target].target_span, "the first one"),))
+                continue
+            if u.target != MEMORY and u.target not in out_names:
+                self._bad_target(u)
+                continue
+            updates[u.target] = u
+        functions: list[PartialFunction] = []
+        targets = [b.name for b in self.outputs] + [MEMORY]
+        for psi, target in enumerate(targets, start=1):
+            functions.append(self._function(psi, target, updates.get(target), bd))
+        conditions = self._conditions(bd)
+        send = self._arrangement(bd, bd.send, self.outputs, "send")
+        receive = self._arrangement(bd, bd.receive, self.inputs, "receive")
+        return Behaviour(bd.name, bd.span, tuple(functions), conditions, send, receive)
+
+    def _bad_target(self, u: ast.UpdateDecl) -> None:
+        if u.target in self.input_names:
+            self.bag.error("E402", f"'{u.target}' is an input buffer: no partial function "
+                           "writes it", u.target_span,
+                           "inputs are filled by receiving; update an output buffer or memory")
+        elif any(v.name == u.target for v in self.shell.memory):
+            self.bag.error("E404", f"'{u.target}' is a memory variable: memory has one partial "
+                           "function", u.target_span, f"write it inside `update memory {{ ... }}`")
+        else:
+            outs = ", ".join(b.name for b in self.outputs) or "none"
+            self.bag.error("E404", f"'{u.target}' is not an output buffer of {self.shell.id}",
+                           u.target_span, f"update one of its outputs ({outs}) or memory")
+
+    def _function(self, psi: int, target: str, u: ast.UpdateDecl | None,
+                  bd: ast.BehaviourDecl) -> PartialFunction:
+        n = len(self.inputs)
+        if u is None:
+            combos = combinations(n) if n <= MAX_INPUTS else [tuple(True for _ in range(n))]
+            cases = tuple(DataCase(i + 1, c, (), bd.span, None) for i, c in enumerate(combos))
+            return PartialFunction(psi, target, cases, bd.span, False)
+        for case in u.cases:
+            self._body(case.body, target)
+        if n > MAX_INPUTS:
+            self.bag.error("E504", f"{self.shell.id} has {n} input buffers: 2^{n} data cases are "
+                           "too many to enumerate", u.target_span,
+                           f"keep at most {MAX_INPUTS} inputs per subsystem")
+            return PartialFunction(psi, target, (), u.span, True)
+        return PartialFunction(psi, target, self._cases(u), u.span, True)
+
+    def _cases(self, u: ast.UpdateDecl) -> tuple[DataCase, ...]:
+        inputs = self.input_names
+        explicit: list[tuple[int, ast.Case]] = []
+        fallback: tuple[int, ast.Case] | None = None
+        for i, case in enumerate(u.cases):
+            if case.condition is None:
+                if fallback is not None:
+                    self.bag.error("E502", "two `otherwise` cases", case.span,
+                                   related=(Related(fallback[1].span, "the first one"),))
+                    continue
+                fallback = (i, case)
+                continue
+            self.checker.check(case.condition, self.scope(new_allowed=True), BOOL)
+            try:
+                for combo in combinations(len(inputs)):
+                    eval_availability(case.condition, inputs, combo)
+            except _NotData as e:
+                self.bag.error("E506", "a case condition may only combine new(x) of input "
+                               "buffers with and/or/not", e.span,
+                               "test data values inside the case, with `if ... then ... else`")
+                continue
+            explicit.append((i, case))
+        out: list[DataCase] = []
+        missing: list[str] = []
+        for varpi, combo in enumerate(combinations(len(inputs)), start=1):
+            covering = [(i, c) for i, c in explicit if eval_availability(c.condition, inputs, combo)]  # type: ignore[arg-type]
+            if len(covering) > 1:
+                (i1, c1), (i2, c2) = covering[0], covering[1]
+                self.bag.error("E502", f"cases overlap when {combination_text(inputs, combo)}",
+                               c2.span, "make the case conditions disjoint",
+                               related=(Related(c1.span, "this case also covers it"),))
+            if not covering and fallback is not None:
+                covering = [fallback]
+            if not covering:
+                missing.append(combination_text(inputs, combo))
+                continue
+            index, case = covering[0]
+            out.append(DataCase(varpi, combo, case.body, case.span, index))
+        if missing:
+            self.bag.error(
+                "E501", f"no case of `update {u.target}` covers: " + "; ".join(missing),
+                u.target_span, "add the missing case(s) or an `otherwise:` case",
+            )
+        return tuple(out)
+
+    # ------------------------------------------------------------------ statements
+    def _body(self, body: tuple[ast.Stmt, ...], target: str) -> None:
+        scope = self.scope()
+        for stmt in body:
+            match stmt:
+                case ast.Skip():
+                    pass
+                case ast.Let():
+                    if scope.lookup(stmt.name) is not None:
+                        self.bag.error("E101", f"'{stmt.name}' is already declared", stmt.span,
+                                       "choose another name for the local value")
+                    t = self.checker.check(stmt.value, scope)
+                    if t is not None:
+                        scope.extra[stmt.name] = Symbol("local", t, stmt.span)
+                case ast.Assign():
+                    self._assign(stmt, scope, target)
+
+    def _assign(self, stmt: ast.Assign, scope: Scope, target: str) -> None:
+        root = self.checker.root_name(stmt.target)
+        if root is None:
+            self.bag.error("E205", "only buffers and memory can be assigned", stmt.target.span)
+            return
+        sym = scope.lookup(root.name)
+        if sym is None:
+            self.bag.error("E102", f"'{root.name}' is not declared here", root.span)
+            self.checker.check(stmt.value, scope)
+            return
+        allowed = (sym.kind == "memory") if target == MEMORY else (
+            sym.kind == "output" and root.name == target)
+        if sym.kind == "input":
+            self.bag.error("E402", f"'{root.name}' is an input buffer and cannot be written",
+                           root.span, "inputs are filled by receiving")
+        elif not allowed:
+            what = "memory" if target == MEMORY else f"output '{target}'"
+            where = ("`update memory`" if sym.kind == "memory" else f"`update {root.name}`"
+                     if sym.kind == "output" else None)
+            self.bag.error(
+                "E401", f"the partial function for {what} writes '{root.name}' ({sym.kind})",
+                root.span,
+                f"canonical decomposition: move this into {where}" if where
+                else "only buffers and memory can be assigned",
+            )
+        reads_before = set(scope.reads)
+        lt: Type | None = self.checker.check(stmt.target, scope)
+        scope.reads.clear()
+        scope.reads.update(reads_before | self._index_reads(stmt.target, scope))
+        if allowed:
+            self.usage.written.add(root.name)
+        if lt is None:
+            self.checker.check(stmt.value, scope)
+            return
+        got = self.checker.check(stmt.value, scope, lt)
+        if got is not None and not assignable(got, lt):
+            self.bag.error("E201", f"cannot assign {got} to '{root.name}' of type {lt}",
+                           stmt.value.span)
+
+    def _index_reads(self, target: ast.Expr, scope: Scope) -> set[str]:
+        names: set[str] = set()
+        while isinstance(target, ast.FieldAccess | ast.Index):
+            if isinstance(target, ast.Index):
+                sub = Scope(scope.symbols, scope.externs, extra=scope.extra)
+                self.checker.check(target.index, sub)
+                names |= sub.reads
+            target = target.value
+        return names
+
+    # ------------------------------------------------------------------ conditions
+    def _conditions(self, bd: ast.BehaviourDecl) -> tuple[Condition, ...]:
+        out: list[Condition] = []
+        seen: dict[str, Span] = {}
+        for c in bd.conditions:
+            if c.name in seen:
+                self.bag.error("E101", f"condition '{c.name}' is declared twice in behaviour "
+                               f"'{bd.name}'", c.name_span,
+                               related=(Related(seen[c.name], "first declared here"),))
+                continue
+            if c.name in self.symbols:
+                self.bag.error("E101", f"condition '{c.name}' has the name of a "
+                               f"{self.symbols[c.name].kind}", c.name_span)
+                continue
+            seen[c.name] = c.name_span
+            self.checker.expect(c.expr, self.scope(), BOOL, f"{c.kind} condition '{c.name}'")
+            out.append(Condition(c.kind, c.name, c.expr, c.span))
+        if not any(c.kind == "terminal" for c in out):
+            self.bag.error("E602", f"behaviour '{bd.name}' has no terminal condition", bd.name_span,
+                           "add `terminal NAME when EXPR` (`terminal never when false` runs "
+                           "forever)")
+        return tuple(out)
+
+    # ------------------------------------------------------------------ arrangements
+    def _arrangement(self, bd: ast.BehaviourDecl, decls: tuple[ast.Arrangement, ...],
+                     buffers: tuple[Buffer, ...], verb: str) -> Arrangement | None:
+        if len(decls) > 1:
+            self.bag.error("E610", f"behaviour '{bd.name}' has {len(decls)} `{verb}` "
+                           "declarations", decls[1].span, f"combine them: `{verb} a; b` "
+                           f"(in sequence) or `{verb} a | b` (in parallel)")
+        if not decls:
+            if not buffers:
+                return None
+            leaves: tuple[Arrangement, ...] = tuple(ArrLeaf(b.name, bd.span) for b in buffers)
+            return leaves[0] if len(leaves) == 1 else ArrSeq(leaves, bd.span)
+        names = {b.name for b in buffers}
+        seen: dict[str, Span] = {}
+        kind = "output" if verb == "send" else "input"
+
+        def convert(a: ast.Arrangement) -> Arrangement:
+            match a:
+                case ast.ArrBuffer():
+                    if a.name not in names:
+                        self.bag.error("E607", f"'{a.name}' is not an {kind} buffer of "
+                                       f"{self.shell.id}", a.span)
+                    elif a.name in seen:
+                        self.bag.error("E607", f"'{a.name}' appears twice in `{verb}`", a.span,
+                                       related=(Related(seen[a.name], "first here"),))
+                    seen.setdefault(a.name, a.span)
+                    return ArrLeaf(a.name, a.span)
+                case ast.ArrSeq():
+                    return ArrSeq(tuple(convert(x) for x in a.items), a.span)
+                case ast.ArrPar():
+                    return ArrPar(tuple(convert(x) for x in a.items), a.span)
+
+        result = convert(decls[0])
+        missing = [b.name for b in buffers if b.name not in seen]
+        if missing:
+            self.bag.error("E606", f"`{verb}` of behaviour '{bd.name}' misses "
+                           + ", ".join(missing), decls[0].span,
+                           f"every {kind} buffer is {'sent' if verb == 'send' else 'received'} "
+                           "once per iteration")
+        return result
+
+    # ------------------------------------------------------------------ switches
+    def _switches(self, decl: ast.SubsystemDecl, behaviours: dict[str, Behaviour]
+                  ) -> tuple[Switch, ...]:
+        out: list[Switch] = []
+        if len(decl.initial) != 1:
+            span = decl.initial[1].span if len(decl.initial) > 1 else decl.name_span
+            self.bag.error("E601", f"{self.shell.id} needs exactly one `initial` behaviour, "
+                           f"it has {len(decl.initial)}", span)
+        for ini in decl.initial[:1]:
+            if ini.behaviour not in behaviours:
+                self.bag.error("E102", f"no behaviour '{ini.behaviour}' in {self.shell.id}",
+                               ini.behaviour_span)
+                continue
+            out.append(Switch(0, None, ini.behaviour, None, False, ini.span))
+        for i, sw in enumerate(decl.switches, start=1):
+            ok = True
+            if sw.source not in behaviours:
+                self.bag.error("E102", f"no behaviour '{sw.source}' in {self.shell.id}",
+                               sw.source_span)
+                ok = False
+            if sw.target != "end" and sw.target not in behaviours:
+                self.bag.error("E102", f"no behaviour '{sw.target}' in {self.shell.id}",
+                               sw.target_span, "switch to `end` to finish the subsystem")
+                ok = False
+            if sw.condition is not None and sw.source in behaviours:
+                self._switch_condition(sw.condition, behaviours[sw.source])
+            if ok:
+                out.append(Switch(i, sw.source, None if sw.target == "end" else sw.target,
+                                  sw.condition, sw.condition is None, sw.span))
+        return tuple(out)
+
+    def _switch_condition(self, e: ast.Expr, source: Behaviour) -> None:
+        scope = self.scope()
+        for c in source.conditions:
+            scope.extra[c.name] = Symbol("condition", BOOL, c.span)
+        for name in _names(e):
+            if scope.lookup(name.name) is None and name.name in self.all_conditions:
+                self.bag.error("E608", f"'{name.name}' is a condition of behaviour "
+                               f"'{self.all_conditions[name.name]}', not of '{source.name}'",
+                               name.span, "a switch may test the conditions of its source "
+                               "behaviour only")
+                return
+        self.checker.expect(e, scope, BOOL, "a switch condition")
+
+
+def _names(e: ast.Expr) -> list[ast.Name]:
+    out: list[ast.Name] = []
+    stack: list[ast.Expr] = [e]
+    while stack:
+        x = stack.pop()
+        match x:
+            case ast.Name():
+                out.append(x)
+            case ast.FieldAccess() | ast.Unary():
+                stack.append(x.value if isinstance(x, ast.FieldAccess) else x.operand)
+            case ast.Index():
+                stack += [x.value, x.index]
+            case ast.Binary():
+                stack += [x.left, x.right]
+            case ast.IfExpr():
+                stack += [x.condition, x.then, x.otherwise]
+            case ast.Call() | ast.ArrayLit():
+                stack += list(x.args if isinstance(x, ast.Call) else x.items)
+            case ast.RecordLit():
+                stack += [v for _, v in x.fields]
+    return out

@@ -1,0 +1,17 @@
+"""What a structural check sees."""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+from rssm_dsl.diagnostics import DiagnosticBag
+from rssm_dsl.semantics.model import System
+from rssm_dsl.syntax import ast
+
+
+@dataclass(frozen=True)
+class CheckContext:
+    bag: DiagnosticBag
+    system: System
+    decls: dict[str, ast.SubsystemDecl]     # subsystem id -> its declaration
+    written: dict[str, set[str]]            # subsystem id -> outputs/memory written

@@ -1,0 +1,89 @@
+"""Unused buffers, memory and parameters (W701-W703)."""
+
+from __future__ import annotations
+
+from collections.abc import Iterator
+
+from rssm_dsl.semantics.checks.context import CheckContext
+from rssm_dsl.syntax import ast
+
+
+def _exprs(decl: ast.SubsystemDecl) -> Iterator[ast.Expr]:
+    for m in decl.memory:
+        if m.init is not None:
+            yield m.init
+    for b in decl.buffers:
+        if b.init is not None:
+            yield b.init
+    for p in decl.params:
+        yield p.value
+    for bd in decl.behaviours:
+        for c in bd.conditions:
+            yield c.expr
+        for u in bd.updates:
+            for case in u.cases:
+                if case.condition is not None:
+                    yield case.condition
+                for st in case.body:
+                    if isinstance(st, ast.Let):
+                        yield st.value
+                    elif isinstance(st, ast.Assign):
+                        yield st.value
+                        target = st.target
+                        while isinstance(target, ast.FieldAccess | ast.Index):
+                            if isinstance(target, ast.Index):
+                                yield target.index
+                            target = target.value
+    for sw in decl.switches:
+        if sw.condition is not None:
+            yield sw.condition
+
+
+def names_read(decl: ast.SubsystemDecl) -> set[str]:
+    out: set[str] = set()
+    stack = list(_exprs(decl))
+    while stack:
+        e = stack.pop()
+        match e:
+            case ast.Name():
+                out.add(e.name)
+            case ast.FieldAccess():
+                stack.append(e.value)
+            case ast.Unary():
+                stack.append(e.operand)
+            case ast.Index():
+                stack += [e.value, e.index]
+            case ast.Binary():
+                stack += [e.left, e.right]
+            case ast.IfExpr():
+                stack += [e.condition, e.then, e.otherwise]
+            case ast.Call():
+                stack += list(e.args)
+            case ast.ArrayLit():
+                stack += list(e.items)
+            case ast.RecordLit():
+                stack += [v for _, v in e.fields]
+    return out
+
+
+def check_usage(ctx: CheckContext) -> None:
+    for s in ctx.system.subsystems():
+        decl = ctx.decls.get(s.id)
+        if decl is None:
+            continue
+        read = names_read(decl)
+        written = ctx.written.get(s.id, set())
+        for b in s.inputs:
+            if b.name not in read:
+                ctx.bag.warn("W701", f"input '{b.name}' of {s.id} is never read", b.span,
+                             "use it in a partial function or a condition, or remove it")
+        for b in s.outputs:
+            if b.name not in written:
+                ctx.bag.warn("W701", f"output '{b.name}' of {s.id} is never written", b.span,
+                             f"add `update {b.name} {{ ... }}` to a behaviour")
+        for v in s.memory:
+            if v.name not in read:
+                ctx.bag.warn("W702", f"memory '{v.name}' of {s.id} is never read", v.span)
+        for v in s.params:
+            if v.name not in read:
+                ctx.bag.warn("W703", f"param '{v.name}' of {s.id} is never read", v.span)

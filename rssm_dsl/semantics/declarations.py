@@ -1,0 +1,157 @@
+"""Program-wide declarations: types, constants, external operations, device types."""
+
+from __future__ import annotations
+
+import re
+from dataclasses import dataclass, field
+
+from rssm_dsl.diagnostics import DiagnosticBag, Related
+from rssm_dsl.semantics.model import Const, Extern
+from rssm_dsl.semantics.typecheck import BUILTIN_CONSTS, BUILTIN_FUNCTIONS, ExprChecker, Scope, Symbol
+from rssm_dsl.semantics.types import SCALARS, ArrayT, RecordT, Type, assignable
+from rssm_dsl.source import Span
+from rssm_dsl.syntax import ast
+
+BINDING_RE = re.compile(r"^[A-Za-z_][A-Za-z0-9_]*(\.[A-Za-z_][A-Za-z0-9_]*)*:[A-Za-z_][A-Za-z0-9_]*$")
+
+
+@dataclass
+class Globals:
+    types: dict[str, Type] = field(default_factory=dict)
+    consts: dict[str, Const] = field(default_factory=dict)
+    externs: dict[str, Extern] = field(default_factory=dict)
+    devices: dict[str, ast.DeviceDecl] = field(default_factory=dict)
+    systems: list[ast.SystemDecl] = field(default_factory=list)
+    spans: dict[str, Span] = field(default_factory=dict)
+
+    def symbols(self) -> dict[str, Symbol]:
+        return {n: Symbol("const", c.type, c.span) for n, c in self.consts.items()}
+
+
+class DeclarationPass:
+    def __init__(self, bag: DiagnosticBag) -> None:
+        self.bag = bag
+        self.g = Globals()
+        self.checker = ExprChecker(bag)
+        self._type_decls: dict[str, ast.RecordDecl | ast.AliasDecl] = {}
+        self._resolving: set[str] = set()
+
+    def _declare(self, name: str, span: Span) -> bool:
+        if name in self.g.spans:
+            self.bag.error("E101", f"'{name}' is declared twice", span,
+                           related=(Related(self.g.spans[name], "first declared here"),))
+            return False
+        if name in SCALARS or name in BUILTIN_FUNCTIONS or name in BUILTIN_CONSTS:
+            self.bag.error("E101", f"'{name}' is a built-in name", span, "choose another name")
+            return False
+        self.g.spans[name] = span
+        return True
+
+    def run(self, modules: list[ast.Module], root: ast.Module | None) -> Globals:
+        decls = [d for m in modules for d in m.decls]
+        for d in decls:
+            if isinstance(d, ast.RecordDecl | ast.AliasDecl) and self._declare(d.name, d.name_span):
+                self._type_decls[d.name] = d
+        for name in list(self._type_decls):
+            self._resolve_named(name)
+        for d in decls:
+            match d:
+                case ast.ConstDecl():
+                    self._const(d)
+                case ast.ExternDecl():
+                    self._extern(d)
+                case ast.DeviceDecl():
+                    if self._declare(d.name, d.name_span):
+                        self.g.devices[d.name] = d
+                case ast.SystemDecl():
+                    if root is not None and d in root.decls:
+                        self.g.systems.append(d)
+                    else:
+                        self.bag.error("E104", f"system '{d.name}' is declared in an imported "
+                                       "module", d.name_span, "compile that file instead")
+        return self.g
+
+    # ------------------------------------------------------------------ types
+    def resolve_type(self, t: ast.TypeExpr) -> Type | None:
+        if isinstance(t, ast.ArrayType):
+            elem = self.resolve_type(t.element)
+            if elem is None:
+                return None
+            if t.size < 1:
+                self.bag.error("E206", "an array needs at least one element", t.span)
+                return None
+            return ArrayT(elem, t.size)
+        if t.name in SCALARS:
+            return SCALARS[t.name]
+        if t.name in self._type_decls:
+            return self._resolve_named(t.name, t.span)
+        if t.name in self.g.devices or t.name in self.g.consts or t.name in self.g.externs:
+            self.bag.error("E103", f"'{t.name}' is not a type", t.span)
+            return None
+        self.bag.error("E202", f"unknown type '{t.name}'", t.span,
+                       "built-in types are bool, int, float and T[N]; import std.types for more")
+        return None
+
+    def _resolve_named(self, name: str, use: Span | None = None) -> Type | None:
+        if name in self.g.types:
+            return self.g.types[name]
+        decl = self._type_decls[name]
+        if name in self._resolving:
+            self.bag.error("E202", f"type '{name}' is defined in terms of itself",
+                           use or decl.name_span)
+            return None
+        self._resolving.add(name)
+        try:
+            if isinstance(decl, ast.AliasDecl):
+                result = self.resolve_type(decl.type)
+            else:
+                fields: list[tuple[str, Type]] = []
+                seen: set[str] = set()
+                ok = True
+                for f in decl.fields:
+                    if f.name in seen:
+                        self.bag.error("E101", f"field '{f.name}' is declared twice", f.span)
+                        continue
+                    seen.add(f.name)
+                    ft = self.resolve_type(f.type)
+                    if ft is None:
+                        ok = False
+                        continue
+                    fields.append((f.name, ft))
+                result = RecordT(name, tuple(fields)) if ok else None
+        finally:
+            self._resolving.discard(name)
+        if result is not None:
+            self.g.types[name] = result
+        return result
+
+    # ------------------------------------------------------------------ values
+    def _const(self, d: ast.ConstDecl) -> None:
+        if not self._declare(d.name, d.name_span):
+            return
+        want = self.resolve_type(d.type) if d.type is not None else None
+        scope = Scope(self.g.symbols(), {})
+        got = self.checker.check(d.value, scope, want)
+        if got is None:
+            return
+        if want is not None and not assignable(got, want):
+            self.bag.error("E201", f"const '{d.name}' is declared {want} but its value is {got}",
+                           d.value.span)
+            return
+        self.g.consts[d.name] = Const(d.name, want or got, d.value, d.span)
+
+    def _extern(self, d: ast.ExternDecl) -> None:
+        if not self._declare(d.name, d.name_span):
+            return
+        if not BINDING_RE.match(d.binding):
+            self.bag.error("E208", f"binding \"{d.binding}\" is not of the form module:function",
+                           d.binding_span, 'e.g. "rssm_stdlib.lwr4plus.dynamics:impedance"')
+        params: list[tuple[str, Type]] = []
+        for p in d.params:
+            pt = self.resolve_type(p.type)
+            if pt is not None:
+                params.append((p.name, pt))
+        result = self.resolve_type(d.result)
+        if result is None or len(params) != len(d.params):
+            return
+        self.g.externs[d.name] = Extern(d.name, tuple(params), result, d.binding, d.span)

@@ -1,0 +1,205 @@
+"""The structure of the system (paper III-A): agents, subsystems, devices and their buffers."""
+
+from __future__ import annotations
+
+from dataclasses import dataclass, field
+
+from rssm_dsl.diagnostics import DiagnosticBag, Related
+from rssm_dsl.semantics.declarations import DeclarationPass, Globals
+from rssm_dsl.semantics.model import DEVICE_LETTER, KIND_LETTER, Buffer, Variable
+from rssm_dsl.semantics.typecheck import ExprChecker, Scope, Symbol
+from rssm_dsl.semantics.types import assignable
+from rssm_dsl.source import Span
+from rssm_dsl.syntax import ast
+
+
+@dataclass
+class Shell:
+    """A subsystem or device whose buffers are known but not yet paired."""
+
+    agent: str
+    kind: str                 # control/effector/receptor, or E/R device kind
+    name: str
+    device: bool
+    span: Span
+    frequency: float | None
+    params: list[Variable] = field(default_factory=list)
+    memory: list[Variable] = field(default_factory=list)
+    buffers: list[Buffer] = field(default_factory=list)
+    peers: dict[str, ast.PeerRef | None] = field(default_factory=dict)  # buffer name -> peer
+    decl: ast.SubsystemDecl | None = None
+    device_type: str = ""
+    binding: str | None = None
+
+    @property
+    def letter(self) -> str:
+        return DEVICE_LETTER[self.kind] if self.device else KIND_LETTER[self.kind]
+
+    @property
+    def id(self) -> str:
+        if not self.device and self.kind == "control":
+            return f"{self.agent}.c"
+        return f"{self.agent}.{self.letter}.{self.name}"
+
+    def inputs(self) -> list[Buffer]:
+        return [b for b in self.buffers if b.direction is ast.Direction.INPUT]
+
+    def outputs(self) -> list[Buffer]:
+        return [b for b in self.buffers if b.direction is ast.Direction.OUTPUT]
+
+
+@dataclass
+class AgentShell:
+    name: str
+    span: Span
+    shells: list[Shell]
+
+
+class StructurePass:
+    def __init__(self, bag: DiagnosticBag, g: Globals, decls: DeclarationPass) -> None:
+        self.bag = bag
+        self.g = g
+        self.decls = decls
+        self.checker = ExprChecker(bag)
+
+    def run(self, system: ast.SystemDecl) -> list[AgentShell]:
+        agents: list[AgentShell] = []
+        seen: dict[str, Span] = {}
+        for a in system.agents:
+            if a.name in seen:
+                self.bag.error("E101", f"agent '{a.name}' is declared twice", a.name_span,
+                               related=(Related(seen[a.name], "first declared here"),))
+                continue
+            seen[a.name] = a.name_span
+            agents.append(self._agent(a))
+        return agents
+
+    def _agent(self, a: ast.AgentDecl) -> AgentShell:
+        shells: list[Shell] = []
+        controls = [s for s in a.subsystems if s.kind is ast.SubsystemKind.CONTROL]
+        if len(controls) != 1:
+            self.bag.error(
+                "E301", f"agent '{a.name}' has {len(controls)} control subsystems; it needs exactly one",
+                controls[1].span if len(controls) > 1 else a.name_span,
+                "an agent a_j has one control subsystem c_j (paper III-A)",
+            )
+        names: dict[tuple[bool, str], Span] = {}
+        for s in sorted(a.subsystems, key=lambda s: s.kind is not ast.SubsystemKind.CONTROL):
+            key = (False, s.name)
+            if key in names:
+                self.bag.error("E101", f"subsystem '{s.name}' is declared twice in agent "
+                               f"'{a.name}'", s.name_span,
+                               related=(Related(names[key], "first declared here"),))
+                continue
+            names[key] = s.name_span
+            shells.append(self._subsystem(a.name, s))
+        for d in a.devices:
+            key = (True, d.name)
+            if key in names:
+                self.bag.error("E101", f"device '{d.name}' is declared twice in agent '{a.name}'",
+                               d.name_span, related=(Related(names[key], "first declared here"),))
+                continue
+            names[key] = d.name_span
+            shell = self._device(a.name, d)
+            if shell is not None:
+                shells.append(shell)
+        return AgentShell(a.name, a.span, shells)
+
+    # ------------------------------------------------------------------ variables
+    def _variable(self, name: str, span: Span, t: ast.TypeExpr, init: ast.Expr | None,
+                  scope: Scope, what: str) -> Variable | None:
+        vt = self.decls.resolve_type(t)
+        if vt is None:
+            return None
+        if init is not None:
+            got = self.checker.check(init, scope, vt)
+            if got is not None and not assignable(got, vt):
+                self.bag.error("E201", f"{what} '{name}' is {vt} but its initial value is {got}",
+                               init.span)
+        return Variable(name, vt, init, span)
+
+    def _frequency(self, f: ast.Frequency | None) -> float | None:
+        if f is None:
+            return None
+        if f.hertz <= 0:
+            self.bag.error("E209", "a frequency must be positive", f.span)
+            return None
+        return f.hertz
+
+    def _fill(self, shell: Shell, params: tuple[ast.ParamDecl, ...],
+              memory: tuple[ast.MemoryDecl, ...], buffers: tuple[ast.BufferDecl, ...]) -> None:
+        local: dict[str, Span] = {}
+
+        def declare(name: str, span: Span) -> bool:
+            if name in local:
+                self.bag.error("E101", f"'{name}' is declared twice in {shell.id}", span,
+                               related=(Related(local[name], "first declared here"),))
+                return False
+            if name == "memory":
+                self.bag.error("E101", "'memory' names the memory target of `update`; "
+                               "choose another name", span)
+                return False
+            local[name] = span
+            return True
+
+        init_scope = Scope(self.g.symbols(), self.g.externs)
+        for p in params:
+            if declare(p.name, p.name_span):
+                v = self._variable(p.name, p.span, p.type, p.value, init_scope, "param")
+                if v is not None:
+                    shell.params.append(v)
+                    init_scope.symbols[p.name] = Symbol("param", v.type, v.span)
+        for m in memory:
+            if declare(m.name, m.name_span):
+                v = self._variable(m.name, m.span, m.type, m.init, init_scope, "memory")
+                if v is not None:
+                    shell.memory.append(v)
+        for b in buffers:
+            if not declare(b.name, b.name_span):
+                continue
+            bt = self.decls.resolve_type(b.type)
+            if bt is None:
+                continue
+            if b.init is not None:
+                got = self.checker.check(b.init, init_scope, bt)
+                if got is not None and not assignable(got, bt):
+                    self.bag.error("E201", f"buffer '{b.name}' is {bt} but its initial value is "
+                                   f"{got}", b.init.span)
+            mode = b.mode or ast.Mode.NONBLOCKING
+            shell.buffers.append(Buffer(shell.id, b.name, b.direction, bt, mode, b.init, b.span))
+            shell.peers[b.name] = b.peer
+
+    def _subsystem(self, agent: str, s: ast.SubsystemDecl) -> Shell:
+        shell = Shell(agent, s.kind.value, s.name, False, s.span, self._frequency(s.frequency),
+                      decl=s)
+        self._fill(shell, s.params, s.memory, s.buffers)
+        for b in s.buffers:
+            if b.peer is None:
+                self.bag.error("E307", f"buffer '{b.name}' of {shell.id} does not say which "
+                               "subsystem it talks to", b.name_span,
+                               f"write `{b.direction.value} {b.name}: ... "
+                               f"{'to' if b.direction is ast.Direction.OUTPUT else 'from'} e.NAME`")
+        return shell
+
+    def _device(self, agent: str, d: ast.DeviceInstance) -> Shell | None:
+        decl = self.g.devices.get(d.device)
+        if decl is None:
+            if d.device in self.g.spans:
+                self.bag.error("E103", f"'{d.device}' is not a device type", d.device_span)
+            else:
+                self.bag.error("E102", f"unknown device type '{d.device}'", d.device_span,
+                               "declare it with `device effector NAME { ... }` or import it")
+            return None
+        if decl.kind is not d.kind:
+            self.bag.error("E308", f"'{d.device}' is a real {decl.kind.value}, declared here as a "
+                           f"real {d.kind.value}", d.span,
+                           related=(Related(decl.name_span, "device type declared here"),))
+        shell = Shell(agent, decl.kind.value, d.name, True, d.span,
+                      self._frequency(d.frequency or decl.frequency), device_type=decl.name,
+                      binding=decl.binding.binding if decl.binding else None)
+        self._fill(shell, decl.params, (), decl.buffers)
+        for b in decl.buffers:
+            if b.peer is not None:
+                self.bag.error("E302", "a device buffer does not name its peer; the virtual "
+                               "subsystem names the device", b.peer.span)
+        return shell

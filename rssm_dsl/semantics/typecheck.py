@@ -1,0 +1,278 @@
+"""Type checking of expressions and statements of the small RSSM expression language."""
+
+from __future__ import annotations
+
+from collections.abc import Callable
+from dataclasses import dataclass, field
+
+from rssm_dsl.diagnostics import DiagnosticBag
+from rssm_dsl.semantics.model import Extern
+from rssm_dsl.semantics.types import (
+    BOOL, FLOAT, INT, ArrayT, RecordT, Type, assignable, is_numeric, is_numeric_array,
+)
+from rssm_dsl.source import Span
+from rssm_dsl.syntax import ast
+
+_MATH1 = ("sin", "cos", "tan", "asin", "acos", "atan", "exp", "log", "sqrt", "floor", "ceil",
+          "tanh")
+BUILTIN_FUNCTIONS = (*_MATH1, "abs", "atan2", "min", "max", "clamp", "norm", "dot", "cross",
+                     "new")
+BUILTIN_CONSTS: dict[str, tuple[Type, float]] = {"pi": (FLOAT, 3.141592653589793),
+                                                 "inf": (FLOAT, float("inf"))}
+
+
+@dataclass(frozen=True)
+class Symbol:
+    kind: str   # const | param | memory | input | output | local | condition | builtin
+    type: Type
+    span: Span
+
+
+@dataclass
+class Scope:
+    """Names visible in one expression context."""
+
+    symbols: dict[str, Symbol]
+    externs: dict[str, Extern]
+    new_allowed: bool = False          # inside a data-availability case condition
+    inputs: tuple[str, ...] = ()
+    reads: set[str] = field(default_factory=set)
+    extra: dict[str, Symbol] = field(default_factory=dict)  # locals (let), conditions
+
+    def lookup(self, name: str) -> Symbol | None:
+        return self.extra.get(name) or self.symbols.get(name)
+
+
+class ExprChecker:
+    def __init__(self, bag: DiagnosticBag) -> None:
+        self.bag = bag
+
+    # ------------------------------------------------------------ expressions
+    def check(self, e: ast.Expr, scope: Scope, expected: Type | None = None) -> Type | None:
+        method: Callable[[ast.Expr, Scope, Type | None], Type | None] = getattr(
+            self, "_" + type(e).__name__
+        )
+        return method(e, scope, expected)
+
+    def expect(self, e: ast.Expr, scope: Scope, want: Type, what: str) -> None:
+        got = self.check(e, scope, want)
+        if got is not None and not assignable(got, want):
+            self.bag.error("E201", f"{what} must be {want}, not {got}", e.span)
+
+    def _Literal(self, e: ast.Literal, scope: Scope, expected: Type | None) -> Type | None:
+        if isinstance(e.value, bool):
+            return BOOL
+        return INT if isinstance(e.value, int) else FLOAT
+
+    def _Name(self, e: ast.Name, scope: Scope, expected: Type | None) -> Type | None:
+        sym = scope.lookup(e.name)
+        if sym is None:
+            if e.name in BUILTIN_CONSTS:
+                return BUILTIN_CONSTS[e.name][0]
+            self.bag.error("E102", f"'{e.name}' is not declared here", e.span,
+                           "declare it as memory, param, a buffer or a const")
+            return None
+        scope.reads.add(e.name)
+        return sym.type
+
+    def _FieldAccess(self, e: ast.FieldAccess, scope: Scope, expected: Type | None) -> Type | None:
+        t = self.check(e.value, scope)
+        if t is None:
+            return None
+        if not isinstance(t, RecordT):
+            self.bag.error("E207", f"'{e.field}': a value of type {t} has no fields", e.span)
+            return None
+        ft = t.field(e.field)
+        if ft is None:
+            names = ", ".join(n for n, _ in t.fields)
+            self.bag.error("E207", f"record {t.name} has no field '{e.field}'", e.span,
+                           f"its fields are: {names}")
+        return ft
+
+    def _Index(self, e: ast.Index, scope: Scope, expected: Type | None) -> Type | None:
+        t = self.check(e.value, scope)
+        self.expect(e.index, scope, INT, "an array index")
+        if t is None:
+            return None
+        if not isinstance(t, ArrayT):
+            self.bag.error("E206", f"cannot index a value of type {t}", e.span)
+            return None
+        if isinstance(e.index, ast.Literal) and isinstance(e.index.value, int) and not (
+            0 <= e.index.value < t.size
+        ):
+            self.bag.error("E206", f"index {e.index.value} is out of range for {t}", e.index.span,
+                           f"indices run from 0 to {t.size - 1}")
+        return t.element
+
+    def _Unary(self, e: ast.Unary, scope: Scope, expected: Type | None) -> Type | None:
+        t = self.check(e.operand, scope, expected)
+        if t is None:
+            return None
+        if e.op == "not":
+            if t != BOOL:
+                self.bag.error("E203", f"'not' needs a bool, not {t}", e.span)
+            return BOOL
+        if not (is_numeric(t) or is_numeric_array(t)):
+            self.bag.error("E203", f"cannot negate a value of type {t}", e.span)
+            return None
+        return t
+
+    def _Binary(self, e: ast.Binary, scope: Scope, expected: Type | None) -> Type | None:
+        if e.op in ("and", "or"):
+            self.expect(e.left, scope, BOOL, f"the left operand of '{e.op}'")
+            self.expect(e.right, scope, BOOL, f"the right operand of '{e.op}'")
+            return BOOL
+        lt = self.check(e.left, scope)
+        rt = self.check(e.right, scope)
+        if lt is None or rt is None:
+            return BOOL if e.op in ("==", "!=", "<", "<=", ">", ">=") else None
+        if e.op in ("==", "!="):
+            if not (assignable(lt, rt) or assignable(rt, lt)):
+                self.bag.error("E203", f"cannot compare {lt} with {rt}", e.span)
+            return BOOL
+        if e.op in ("<", "<=", ">", ">="):
+            if not (is_numeric(lt) and is_numeric(rt)):
+                self.bag.error("E203", f"'{e.op}' compares numbers, not {lt} and {rt}", e.span)
+            return BOOL
+        return self._arith(e, lt, rt)
+
+    def _arith(self, e: ast.Binary, lt: Type, rt: Type) -> Type | None:
+        if is_numeric(lt) and is_numeric(rt):
+            if e.op == "/" or FLOAT in (lt, rt):
+                return FLOAT
+            return INT
+        if is_numeric_array(lt) and is_numeric_array(rt) and e.op in "+-*/":
+            assert isinstance(lt, ArrayT) and isinstance(rt, ArrayT)
+            if lt.size != rt.size:
+                self.bag.error("E203", f"'{e.op}' of arrays of different sizes ({lt}, {rt})", e.span)
+                return None
+            return ArrayT(FLOAT, lt.size)
+        if is_numeric_array(lt) and is_numeric(rt) and e.op in "*/":
+            assert isinstance(lt, ArrayT)
+            return ArrayT(FLOAT, lt.size)
+        if is_numeric(lt) and is_numeric_array(rt) and e.op == "*":
+            assert isinstance(rt, ArrayT)
+            return ArrayT(FLOAT, rt.size)
+        self.bag.error("E203", f"'{e.op}' does not apply to {lt} and {rt}", e.span)
+        return None
+
+    def _IfExpr(self, e: ast.IfExpr, scope: Scope, expected: Type | None) -> Type | None:
+        self.expect(e.condition, scope, BOOL, "the condition of 'if'")
+        a = self.check(e.then, scope, expected)
+        b = self.check(e.otherwise, scope, expected)
+        if a is None or b is None:
+            return a or b
+        if assignable(a, b):
+            return b
+        if assignable(b, a):
+            return a
+        self.bag.error("E201", f"the branches of 'if' have different types ({a}, {b})", e.span)
+        return None
+
+    def _ArrayLit(self, e: ast.ArrayLit, scope: Scope, expected: Type | None) -> Type | None:
+        want = expected.element if isinstance(expected, ArrayT) else None
+        types = [self.check(x, scope, want) for x in e.items]
+        if not e.items:
+            self.bag.error("E201", "an empty array has no type", e.span)
+            return None
+        if any(t is None for t in types):
+            return None
+        elem = types[0]
+        assert elem is not None
+        for t, x in zip(types[1:], e.items[1:], strict=True):
+            assert t is not None
+            if assignable(t, elem):
+                continue
+            if assignable(elem, t):
+                elem = t
+                continue
+            self.bag.error("E201", f"array items of different types ({elem}, {t})", x.span)
+            return None
+        return ArrayT(elem, len(e.items))
+
+    def _RecordLit(self, e: ast.RecordLit, scope: Scope, expected: Type | None) -> Type | None:
+        if not isinstance(expected, RecordT):
+            self.bag.error("E201", "a record literal needs a record type from its context", e.span,
+                           "assign it to a record buffer, memory variable or parameter")
+            for _, v in e.fields:
+                self.check(v, scope)
+            return None
+        given = {n for n, _ in e.fields}
+        for n, v in e.fields:
+            ft = expected.field(n)
+            if ft is None:
+                self.bag.error("E207", f"record {expected.name} has no field '{n}'", v.span)
+                self.check(v, scope)
+                continue
+            self.expect(v, scope, ft, f"field '{n}'")
+        missing = [n for n, _ in expected.fields if n not in given]
+        if missing:
+            self.bag.error("E207", f"record {expected.name} literal misses " + ", ".join(missing),
+                           e.span)
+        return expected
+
+    def _Call(self, e: ast.Call, scope: Scope, expected: Type | None) -> Type | None:
+        if e.function == "new":
+            return self._new(e, scope)
+        ext = scope.externs.get(e.function)
+        if ext is not None:
+            if len(e.args) != len(ext.params):
+                self.bag.error("E204", f"{e.function}() takes {len(ext.params)} argument(s), "
+                               f"{len(e.args)} given", e.span, related=())
+            for arg, (pname, ptype) in zip(e.args, ext.params, strict=False):
+                self.expect(arg, scope, ptype, f"argument '{pname}' of {e.function}()")
+            return ext.result
+        if e.function in BUILTIN_FUNCTIONS:
+            return self._builtin(e, scope)
+        self.bag.error("E102", f"function '{e.function}' is not declared", e.function_span,
+                       "declare it with `extern NAME(...) -> TYPE = \"module:function\"`")
+        for a in e.args:
+            self.check(a, scope)
+        return None
+
+    def _new(self, e: ast.Call, scope: Scope) -> Type | None:
+        if not scope.new_allowed:
+            self.bag.error("E505", "new() is only meaningful in the condition of a `case`",
+                           e.span, "data availability is chosen by `case new(x): ...`")
+            return BOOL
+        if len(e.args) != 1 or not isinstance(e.args[0], ast.Name):
+            self.bag.error("E503", "new() takes the name of one input buffer", e.span)
+            return BOOL
+        name = e.args[0].name
+        if name not in scope.inputs:
+            self.bag.error("E503", f"new({name}): '{name}' is not an input buffer of this "
+                           "subsystem", e.args[0].span,
+                           "inputs: " + (", ".join(scope.inputs) or "none"))
+        scope.reads.add(name)
+        return BOOL
+
+    def _builtin(self, e: ast.Call, scope: Scope) -> Type | None:
+        f, args = e.function, e.args
+        arity = {"atan2": 2, "min": 2, "max": 2, "clamp": 3, "dot": 2, "cross": 2}.get(f, 1)
+        if len(args) != arity:
+            self.bag.error("E204", f"{f}() takes {arity} argument(s), {len(args)} given", e.span)
+            return None
+        types = [self.check(a, scope) for a in args]
+        if any(t is None for t in types):
+            return None
+        if f in ("norm", "dot", "cross"):
+            for a, t in zip(args, types, strict=True):
+                if not is_numeric_array(t):  # type: ignore[arg-type]
+                    self.bag.error("E201", f"{f}() needs numeric arrays, not {t}", a.span)
+                    return None
+            if f == "cross" and any(t.size != 3 for t in types):  # type: ignore[union-attr]
+                self.bag.error("E201", "cross() needs two float[3]", e.span)
+            return ArrayT(FLOAT, 3) if f == "cross" else FLOAT
+        for a, t in zip(args, types, strict=True):
+            if not is_numeric(t):  # type: ignore[arg-type]
+                self.bag.error("E201", f"{f}() needs numbers, not {t}", a.span)
+                return None
+        if f in ("abs", "min", "max", "clamp") and all(t == INT for t in types):
+            return INT
+        return FLOAT
+
+    # ------------------------------------------------------------ statements
+    def root_name(self, target: ast.Expr) -> ast.Name | None:
+        while isinstance(target, ast.FieldAccess | ast.Index):
+            target = target.value
+        return target if isinstance(target, ast.Name) else None

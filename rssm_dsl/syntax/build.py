@@ -1,0 +1,362 @@
+"""Turn Lark's parse tree into the AST without recursion (deep input must not crash us)."""
+
+from __future__ import annotations
+
+from collections.abc import Callable
+from typing import Any
+
+from lark import Token, Tree
+
+from rssm_dsl.source import SourceFile, Span
+from rssm_dsl.syntax import ast
+
+MAX_DEPTH = 64
+
+
+class NestingTooDeep(Exception):
+    def __init__(self, span: Span, limit: int) -> None:
+        super().__init__(f"nesting deeper than {limit}")
+        self.span = span
+        self.limit = limit
+
+
+def _unquote(s: str) -> str:
+    body = s[1:-1]
+    return body.encode("utf-8").decode("unicode_escape") if "\\" in body else body
+
+
+_BINARY_RULES = {"or_expr": "or", "and_expr": "and"}
+
+
+class AstBuilder:
+    def __init__(self, source: SourceFile) -> None:
+        self.source = source
+        self._depth: dict[int, int] = {}
+
+    # ------------------------------------------------------------- helpers
+    def _span(self, tree: Tree[Token]) -> Span:
+        m = tree.meta
+        if getattr(m, "empty", True):
+            return self.source.span(0, 0)
+        return Span(self.source.path, m.line, m.column, m.end_line, m.end_column,
+                    m.start_pos, m.end_pos)
+
+    def _tok(self, tok: Token) -> Span:
+        start = tok.start_pos or 0
+        return self.source.span(start, tok.end_pos if tok.end_pos is not None else start)
+
+    def _deep(self, node: Any, children: list[Any], span: Span) -> Any:
+        depth = 1 + max((self._depth.get(id(c), 0) for c in children), default=0)
+        if depth > MAX_DEPTH:
+            raise NestingTooDeep(span, MAX_DEPTH)
+        self._depth[id(node)] = depth
+        return node
+
+    # ------------------------------------------------------------- driver
+    def build(self, tree: Tree[Token]) -> ast.Module:
+        results: dict[int, Any] = {}
+        for sub in tree.iter_subtrees():
+            kids = [results[id(c)] if isinstance(c, Tree) else c for c in sub.children]
+            handler: Callable[[Tree[Token], list[Any]], Any] = getattr(self, "r_" + sub.data)
+            results[id(sub)] = handler(sub, kids)
+        module = results[id(tree)]
+        assert isinstance(module, ast.Module)
+        return module
+
+    # ------------------------------------------------------------- module level
+    def r_start(self, t: Tree[Token], k: list[Any]) -> ast.Module:
+        imports = tuple(x for x in k if isinstance(x, ast.Import))
+        decls = tuple(x for x in k if not isinstance(x, ast.Import))
+        return ast.Module(self._span(t), self.source.path, imports, decls)
+
+    def r_import_decl(self, t: Tree[Token], k: list[Any]) -> ast.Import:
+        path, quoted = k[0]
+        return ast.Import(self._span(t), path, quoted)
+
+    def r_dotted_path(self, t: Tree[Token], k: list[Any]) -> tuple[str, bool]:
+        return ".".join(str(x) for x in k), False
+
+    def r_string_path(self, t: Tree[Token], k: list[Any]) -> tuple[str, bool]:
+        return _unquote(str(k[0])), True
+
+    def r_record_decl(self, t: Tree[Token], k: list[Any]) -> ast.RecordDecl:
+        return ast.RecordDecl(self._span(t), str(k[0]), self._tok(k[0]), tuple(k[1:]))
+
+    def r_field_decl(self, t: Tree[Token], k: list[Any]) -> ast.FieldDecl:
+        return ast.FieldDecl(self._span(t), str(k[0]), k[1])
+
+    def r_alias_decl(self, t: Tree[Token], k: list[Any]) -> ast.AliasDecl:
+        return ast.AliasDecl(self._span(t), str(k[0]), self._tok(k[0]), k[1])
+
+    def r_named_type(self, t: Tree[Token], k: list[Any]) -> ast.NamedType:
+        return ast.NamedType(self._span(t), str(k[0]))
+
+    def r_array_type(self, t: Tree[Token], k: list[Any]) -> ast.ArrayType:
+        return self._deep(ast.ArrayType(self._span(t), k[0], int(k[1])), k, self._span(t))
+
+    def r_const_decl(self, t: Tree[Token], k: list[Any]) -> ast.ConstDecl:
+        return ast.ConstDecl(self._span(t), str(k[0]), self._tok(k[0]), k[1], k[2])
+
+    def r_extern_decl(self, t: Tree[Token], k: list[Any]) -> ast.ExternDecl:
+        params = tuple(x for x in k[1:-2] if isinstance(x, ast.Param))
+        return ast.ExternDecl(self._span(t), str(k[0]), self._tok(k[0]), params, k[-2],
+                              _unquote(str(k[-1])), self._tok(k[-1]))
+
+    def r_param(self, t: Tree[Token], k: list[Any]) -> ast.Param:
+        return ast.Param(self._span(t), str(k[0]), k[1])
+
+    # ------------------------------------------------------------- devices
+    def r_device_kind(self, t: Tree[Token], k: list[Any]) -> ast.DeviceKind:
+        return ast.DeviceKind(str(k[0]))
+
+    def r_device_decl(self, t: Tree[Token], k: list[Any]) -> ast.DeviceDecl:
+        items = k[3:]
+        bindings = [x for x in items if isinstance(x, ast.BindingDecl)]
+        return ast.DeviceDecl(
+            self._span(t), k[0], str(k[1]), self._tok(k[1]), k[2],
+            tuple(x for x in items if isinstance(x, ast.BufferDecl)),
+            tuple(x for x in items if isinstance(x, ast.ParamDecl)),
+            bindings[0] if bindings else None,
+        )
+
+    def r_binding_decl(self, t: Tree[Token], k: list[Any]) -> ast.BindingDecl:
+        return ast.BindingDecl(self._span(t), _unquote(str(k[0])))
+
+    # ------------------------------------------------------------- structure
+    def r_system_decl(self, t: Tree[Token], k: list[Any]) -> ast.SystemDecl:
+        return ast.SystemDecl(self._span(t), str(k[0]), self._tok(k[0]), tuple(k[1:]))
+
+    def r_agent_decl(self, t: Tree[Token], k: list[Any]) -> ast.AgentDecl:
+        items = k[1:]
+        return ast.AgentDecl(
+            self._span(t), str(k[0]), self._tok(k[0]),
+            tuple(x for x in items if isinstance(x, ast.SubsystemDecl)),
+            tuple(x for x in items if isinstance(x, ast.DeviceInstance)),
+        )
+
+    def r_subsystem_kind(self, t: Tree[Token], k: list[Any]) -> tuple[ast.SubsystemKind, Span]:
+        return ast.SubsystemKind(str(k[0])), self._tok(k[0])
+
+    def r_subsystem_decl(self, t: Tree[Token], k: list[Any]) -> ast.SubsystemDecl:
+        (kind, kind_span), name, freq = k[0], k[1], k[2]
+        items = k[3:]
+
+        def of(cls: type[Any]) -> tuple[Any, ...]:
+            return tuple(x for x in items if isinstance(x, cls))
+
+        return ast.SubsystemDecl(
+            self._span(t), kind,
+            str(name) if name is not None else "c",
+            self._tok(name) if name is not None else kind_span,
+            freq, of(ast.MemoryDecl), of(ast.BufferDecl), of(ast.ParamDecl),
+            of(ast.BehaviourDecl), of(ast.InitialDecl), of(ast.SwitchDecl),
+        )
+
+    def r_device_instance(self, t: Tree[Token], k: list[Any]) -> ast.DeviceInstance:
+        return ast.DeviceInstance(self._span(t), k[0], str(k[1]), self._tok(k[1]), str(k[2]),
+                                  self._tok(k[2]), k[3])
+
+    def r_frequency(self, t: Tree[Token], k: list[Any]) -> ast.Frequency:
+        value = k[0].value
+        unit = str(k[1])
+        return ast.Frequency(self._span(t), float(value) * (1000.0 if unit == "kHz" else 1.0))
+
+    def r_freq_unit(self, t: Tree[Token], k: list[Any]) -> str:
+        return str(k[0])
+
+    def r_memory_decl(self, t: Tree[Token], k: list[Any]) -> ast.MemoryDecl:
+        return ast.MemoryDecl(self._span(t), str(k[0]), self._tok(k[0]), k[1], k[2])
+
+    def r_param_decl(self, t: Tree[Token], k: list[Any]) -> ast.ParamDecl:
+        return ast.ParamDecl(self._span(t), str(k[0]), self._tok(k[0]), k[1], k[2])
+
+    def r_direction(self, t: Tree[Token], k: list[Any]) -> ast.Direction:
+        return ast.Direction(str(k[0]))
+
+    def r_peer_arrow(self, t: Tree[Token], k: list[Any]) -> tuple[str, Span]:
+        return str(k[0]), self._tok(k[0])
+
+    def r_mode(self, t: Tree[Token], k: list[Any]) -> tuple[ast.Mode, Span]:
+        return ast.Mode(str(k[0])), self._tok(k[0])
+
+    def r_peer(self, t: Tree[Token], k: list[Any]) -> ast.PeerRef:
+        return ast.PeerRef(self._span(t), tuple(str(x) for x in k))
+
+    def r_buffer_decl(self, t: Tree[Token], k: list[Any]) -> ast.BufferDecl:
+        direction, name, type_, arrow, peer, mode, init = k
+        return ast.BufferDecl(
+            self._span(t), direction, str(name), self._tok(name), type_,
+            peer, mode[0] if mode else None, mode[1] if mode else None, init,
+        )
+
+    # ------------------------------------------------------------- behaviours
+    def r_behaviour_decl(self, t: Tree[Token], k: list[Any]) -> ast.BehaviourDecl:
+        items = k[1:]
+        sends = tuple(x[1] for x in items if isinstance(x, tuple) and x[0] == "send")
+        receives = tuple(x[1] for x in items if isinstance(x, tuple) and x[0] == "receive")
+        return ast.BehaviourDecl(
+            self._span(t), str(k[0]), self._tok(k[0]),
+            tuple(x for x in items if isinstance(x, ast.UpdateDecl)),
+            tuple(x for x in items if isinstance(x, ast.ConditionDecl)),
+            sends, receives,
+        )
+
+    def r_update_target(self, t: Tree[Token], k: list[Any]) -> Token:
+        tok: Token = k[0]
+        return tok
+
+    def r_update_plain(self, t: Tree[Token], k: list[Any]) -> ast.UpdateDecl:
+        span = self._span(t)
+        return ast.UpdateDecl(span, str(k[0]), self._tok(k[0]),
+                              (ast.Case(span, None, tuple(k[1:])),), True)
+
+    def r_update_cases(self, t: Tree[Token], k: list[Any]) -> ast.UpdateDecl:
+        return ast.UpdateDecl(self._span(t), str(k[0]), self._tok(k[0]), tuple(k[1:]), False)
+
+    def r_case(self, t: Tree[Token], k: list[Any]) -> ast.Case:
+        return ast.Case(self._span(t), k[0], tuple(k[1:]))
+
+    def r_otherwise(self, t: Tree[Token], k: list[Any]) -> ast.Case:
+        return ast.Case(self._span(t), None, tuple(k))
+
+    def r_condition_kind(self, t: Tree[Token], k: list[Any]) -> str:
+        return str(k[0])
+
+    def r_condition_decl(self, t: Tree[Token], k: list[Any]) -> ast.ConditionDecl:
+        return ast.ConditionDecl(self._span(t), k[0], str(k[1]), self._tok(k[1]), k[2])
+
+    def r_send_decl(self, t: Tree[Token], k: list[Any]) -> tuple[str, ast.Arrangement]:
+        return "send", k[0]
+
+    def r_receive_decl(self, t: Tree[Token], k: list[Any]) -> tuple[str, ast.Arrangement]:
+        return "receive", k[0]
+
+    def r_arr_seq(self, t: Tree[Token], k: list[Any]) -> ast.ArrSeq:
+        span = self._span(t)
+        return self._deep(ast.ArrSeq(span, tuple(k)), k, span)
+
+    def r_arr_par(self, t: Tree[Token], k: list[Any]) -> ast.ArrPar:
+        span = self._span(t)
+        return self._deep(ast.ArrPar(span, tuple(k)), k, span)
+
+    def r_arr_buffer(self, t: Tree[Token], k: list[Any]) -> ast.ArrBuffer:
+        return ast.ArrBuffer(self._span(t), str(k[0]))
+
+    def r_initial_decl(self, t: Tree[Token], k: list[Any]) -> ast.InitialDecl:
+        return ast.InitialDecl(self._span(t), str(k[0]), self._tok(k[0]))
+
+    def r_switch_when(self, t: Tree[Token], k: list[Any]) -> ast.SwitchDecl:
+        return ast.SwitchDecl(self._span(t), str(k[0]), self._tok(k[0]), str(k[1]),
+                              self._tok(k[1]), k[2])
+
+    def r_switch_otherwise(self, t: Tree[Token], k: list[Any]) -> ast.SwitchDecl:
+        return ast.SwitchDecl(self._span(t), str(k[0]), self._tok(k[0]), str(k[1]),
+                              self._tok(k[1]), None)
+
+    # ------------------------------------------------------------- statements
+    def r_assign(self, t: Tree[Token], k: list[Any]) -> ast.Assign:
+        return ast.Assign(self._span(t), k[0], k[1])
+
+    def r_let(self, t: Tree[Token], k: list[Any]) -> ast.Let:
+        return ast.Let(self._span(t), str(k[0]), k[1])
+
+    def r_skip(self, t: Tree[Token], k: list[Any]) -> ast.Skip:
+        return ast.Skip(self._span(t))
+
+    def r_lvalue(self, t: Tree[Token], k: list[Any]) -> ast.Expr:
+        node: ast.Expr = ast.Name(self._tok(k[0]), str(k[0]))
+        for kind, value, span in k[1:]:
+            whole = node.span.to(span)
+            prev = node
+            if kind == "field":
+                node = ast.FieldAccess(whole, prev, value)
+            else:
+                node = ast.Index(whole, prev, value)
+            node = self._deep(node, [prev, value], whole)
+        return node
+
+    def r_lv_field(self, t: Tree[Token], k: list[Any]) -> tuple[str, Any, Span]:
+        return "field", str(k[0]), self._span(t)
+
+    def r_lv_index(self, t: Tree[Token], k: list[Any]) -> tuple[str, Any, Span]:
+        return "index", k[0], self._span(t)
+
+    # ------------------------------------------------------------- expressions
+    def _expr(self, node: ast.Expr, children: list[Any]) -> ast.Expr:
+        return self._deep(node, children, node.span)  # type: ignore[no-any-return]
+
+    def r_if_expr(self, t: Tree[Token], k: list[Any]) -> ast.Expr:
+        return self._expr(ast.IfExpr(self._span(t), k[0], k[1], k[2]), k)
+
+    def _fold(self, op: str, k: list[Any]) -> ast.Expr:
+        node: ast.Expr = k[0]
+        for right in k[1:]:
+            node = self._expr(ast.Binary(node.span.to(right.span), op, node, right), [node, right])
+        return node
+
+    def r_or_expr(self, t: Tree[Token], k: list[Any]) -> ast.Expr:
+        return self._fold("or", k)
+
+    def r_and_expr(self, t: Tree[Token], k: list[Any]) -> ast.Expr:
+        return self._fold("and", k)
+
+    def r_not_op(self, t: Tree[Token], k: list[Any]) -> ast.Expr:
+        return self._expr(ast.Unary(self._span(t), "not", k[0]), k)
+
+    def _chain(self, k: list[Any]) -> ast.Expr:
+        node: ast.Expr = k[0]
+        for i in range(1, len(k), 2):
+            right = k[i + 1]
+            node = self._expr(
+                ast.Binary(node.span.to(right.span), k[i], node, right), [node, right]
+            )
+        return node
+
+    def r_comparison(self, t: Tree[Token], k: list[Any]) -> ast.Expr:
+        return self._chain(k)
+
+    r_sum = r_comparison
+    r_product = r_comparison
+
+    def r_comp_op(self, t: Tree[Token], k: list[Any]) -> str:
+        return str(k[0])
+
+    r_add_op = r_comp_op
+    r_mul_op = r_comp_op
+
+    def r_neg(self, t: Tree[Token], k: list[Any]) -> ast.Expr:
+        return self._expr(ast.Unary(self._span(t), "-", k[0]), k)
+
+    def r_field(self, t: Tree[Token], k: list[Any]) -> ast.Expr:
+        return self._expr(ast.FieldAccess(self._span(t), k[0], str(k[1])), k)
+
+    def r_index(self, t: Tree[Token], k: list[Any]) -> ast.Expr:
+        return self._expr(ast.Index(self._span(t), k[0], k[1]), k)
+
+    def r_call(self, t: Tree[Token], k: list[Any]) -> ast.Expr:
+        args = [a for a in k[1:] if a is not None]
+        return self._expr(ast.Call(self._span(t), str(k[0]), self._tok(k[0]), tuple(args)), args)
+
+    def r_number(self, t: Tree[Token], k: list[Any]) -> ast.Expr:
+        tok: Token = k[0]
+        value: int | float = int(tok) if tok.type == "INT" else float(tok)
+        return ast.Literal(self._tok(tok), value)
+
+    def r_true(self, t: Tree[Token], k: list[Any]) -> ast.Expr:
+        return ast.Literal(self._span(t), True)
+
+    def r_false(self, t: Tree[Token], k: list[Any]) -> ast.Expr:
+        return ast.Literal(self._span(t), False)
+
+    def r_name(self, t: Tree[Token], k: list[Any]) -> ast.Expr:
+        return ast.Name(self._tok(k[0]), str(k[0]))
+
+    def r_array_lit(self, t: Tree[Token], k: list[Any]) -> ast.Expr:
+        items = [x for x in k if x is not None]
+        return self._expr(ast.ArrayLit(self._span(t), tuple(items)), items)
+
+    def r_record_lit(self, t: Tree[Token], k: list[Any]) -> ast.Expr:
+        return self._expr(ast.RecordLit(self._span(t), tuple(k)), [v for _, v in k])
+
+    def r_field_init(self, t: Tree[Token], k: list[Any]) -> tuple[str, ast.Expr]:
+        return str(k[0]), k[1]
