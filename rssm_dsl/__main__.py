@@ -1,0 +1,3 @@
+from rssm_dsl.cli import entry
+
+entry()

@@ -1,0 +1,6 @@
+"""CLI commands, one module each; the order here is the order in `rssmc --help`.
+Add a command by adding its module name (one line)."""
+
+COMMANDS: tuple[str, ...] = (
+    "compile",
+)

@@ -1,0 +1,75 @@
+"""`rssmc check` and `rssmc compile`."""
+
+from __future__ import annotations
+
+from pathlib import Path
+from typing import Annotated
+
+import typer
+
+from rssm_dsl.cli import EXIT_ERRORS, EXIT_OK, EXIT_USAGE, Format, guarded, report
+
+FileArg = Annotated[Path, typer.Argument(help="The .rssm file of the system.", show_default=False)]
+FormatOpt = Annotated[Format, typer.Option("--format", "-f", help="How to print diagnostics.")]
+
+
+def check(file: FileArg, format: FormatOpt = Format.text) -> None:
+    """Parse and check a specification; print diagnostics. Exit 1 if there are errors."""
+
+    def run() -> int:
+        from rssm_dsl.pipeline import compile_file
+
+        comp = compile_file(file, build=True)
+        report(comp, format)
+        return EXIT_OK if comp.ok else EXIT_ERRORS
+
+    guarded(run)
+
+
+def compile_cmd(
+    file: FileArg,
+    output: Annotated[Path | None, typer.Option("--output", "-o",
+                      help="Output folder (default: out/<file name>).")] = None,
+    emit: Annotated[str, typer.Option(help="Comma-separated outputs: json, dump, dot, pnml.")]
+    = "json,dump,dot,pnml",
+    format: FormatOpt = Format.text,
+    quiet: Annotated[bool, typer.Option("--quiet", "-q", help="Print nothing on success.")]
+    = False,
+) -> None:
+    """Check a specification and write its five-layer HPN (JSON IR, text dump, DOT, PNML).
+    Nothing is written when there are errors."""
+
+    def run() -> int:
+        from rssm_dsl.emit import EMITTERS
+        from rssm_dsl.emit.write import write_outputs
+        from rssm_dsl.pipeline import compile_file
+
+        kinds = [k.strip() for k in emit.split(",") if k.strip()]
+        unknown = [k for k in kinds if k not in EMITTERS]
+        if unknown:
+            typer.echo(f"rssmc: unknown --emit {', '.join(unknown)}; choose from "
+                       f"{', '.join(EMITTERS)}", err=True)
+            return EXIT_USAGE
+        comp = compile_file(file)
+        report(comp, format, quiet)
+        if not comp.ok or comp.hpn is None:
+            return EXIT_ERRORS
+        files: dict[str, str] = {}
+        for k in kinds:
+            files.update(EMITTERS[k](comp.hpn))
+        target = output if output is not None else Path("out") / file.stem
+        written = write_outputs(target, files)
+        if not quiet and format is Format.text:
+            h = comp.hpn
+            typer.echo(f"HPN of system {h.system}: {len(h.pages)} pages, {len(h.places)} places, "
+                       f"{len(h.transitions)} transitions, {len(h.fusions)} fusion places",
+                       err=True)
+            typer.echo(f"wrote {len(written)} files to {target}", err=True)
+        return EXIT_OK
+
+    guarded(run)
+
+
+def register(app: typer.Typer) -> None:
+    app.command("check")(check)
+    app.command("compile")(compile_cmd)

@@ -1,0 +1,30 @@
+"""Write a set of output files all or nothing: into a temporary folder beside the target,
+then moved into place; on any failure the target folder is left as it was."""
+
+from __future__ import annotations
+
+import os
+import shutil
+import tempfile
+from pathlib import Path
+
+
+def write_outputs(target: Path, files: dict[str, str]) -> list[Path]:
+    target = target.resolve()
+    target.parent.mkdir(parents=True, exist_ok=True)
+    staging = Path(tempfile.mkdtemp(prefix=".rssmc-", dir=target.parent))
+    try:
+        for rel, text in files.items():
+            path = staging / rel
+            path.parent.mkdir(parents=True, exist_ok=True)
+            path.write_text(text, encoding="utf-8")
+        target.mkdir(parents=True, exist_ok=True)
+        written: list[Path] = []
+        for rel in sorted(files):
+            dest = target / rel
+            dest.parent.mkdir(parents=True, exist_ok=True)
+            os.replace(staging / rel, dest)
+            written.append(dest)
+        return written
+    finally:
+        shutil.rmtree(staging, ignore_errors=True)

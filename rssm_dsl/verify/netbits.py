@@ -1,0 +1,137 @@
+"""The flat net compiled to bitmasks: the one representation every explorer shares.
+
+A marking of a safe net is a Python ``int`` whose bit ``p`` is set when place ``p`` holds a
+token. Transition ``t`` is enabled in ``m`` when ``m & pre[t] == pre[t]``; firing it gives
+``(m & ~pre[t]) | post[t]``, and the firing is *unsafe* (it would put a second token into a
+place) when ``(m & ~pre[t]) & post[t]`` is not zero. A place in both the pre- and the post-set
+of a transition is a test (read) arc: it must be marked and stays marked.
+
+The vectorised explorer works on the same masks split into 64-bit words (``words``).
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import numpy as np
+import numpy.typing as npt
+
+from rssm_dsl.hpn.flat import FlatNet, Role
+
+U64 = npt.NDArray[np.uint64]
+
+
+def bits(mask: int) -> list[int]:
+    """The indices of the set bits of ``mask``, ascending."""
+    out: list[int] = []
+    while mask:
+        low = mask & -mask
+        out.append(low.bit_length() - 1)
+        mask ^= low
+    return out
+
+
+def to_mask(indices: frozenset[int] | tuple[int, ...] | list[int]) -> int:
+    mask = 0
+    for i in indices:
+        mask |= 1 << i
+    return mask
+
+
+def to_words(mask: int, nwords: int) -> list[int]:
+    return [(mask >> (64 * w)) & 0xFFFF_FFFF_FFFF_FFFF for w in range(nwords)]
+
+
+def from_words(words: list[int] | tuple[int, ...]) -> int:
+    mask = 0
+    for w, value in enumerate(words):
+        mask |= int(value) << (64 * w)
+    return mask
+
+
+@dataclass(frozen=True)
+class NetBits:
+    """Per-transition and per-place masks of a flat net, computed once."""
+
+    net: FlatNet
+    nplaces: int
+    ntrans: int
+    initial: int
+    final: int                      # mask of net.final; a marking m is final iff final and m ⊇ final
+    pre: tuple[int, ...]            # per transition: input places
+    post: tuple[int, ...]           # per transition: output places
+    consume: tuple[int, ...]        # per transition: pre \ post (places emptied by the firing)
+    produce: tuple[int, ...]        # per transition: post \ pre (places filled by the firing)
+    consumers: tuple[int, ...]      # per place: transitions with the place in their pre-set
+    producers: tuple[int, ...]      # per place: transitions that fill the place (post \ pre)
+    conflict: tuple[int, ...]       # per transition: transitions sharing an input place with it
+    nwords: int
+    pre_words: U64                  # (ntrans, nwords)
+    post_words: U64                 # (ntrans, nwords)
+
+    @staticmethod
+    def of(net: FlatNet) -> NetBits:
+        nplaces = len(net.places)
+        ntrans = len(net.transitions)
+        for i, p in enumerate(net.places):
+            if p.index != i:
+                raise ValueError(f"place {p.name!r} has index {p.index}, expected {i}")
+        for i, t in enumerate(net.transitions):
+            if t.index != i:
+                raise ValueError(f"transition {t.name!r} has index {t.index}, expected {i}")
+            for q in (*t.pre, *t.post):
+                if not 0 <= q < nplaces:
+                    raise ValueError(f"transition {t.name!r} refers to place {q}, out of range")
+        pre = tuple(to_mask(t.pre) for t in net.transitions)
+        post = tuple(to_mask(t.post) for t in net.transitions)
+        consume = tuple(a & ~b for a, b in zip(pre, post))
+        produce = tuple(b & ~a for a, b in zip(pre, post))
+        consumers = [0] * nplaces
+        producers = [0] * nplaces
+        for t in range(ntrans):
+            for p in bits(pre[t]):
+                consumers[p] |= 1 << t
+            for p in bits(produce[t]):
+                producers[p] |= 1 << t
+        conflict = []
+        for t in range(ntrans):
+            c = 1 << t
+            for p in bits(pre[t]):
+                c |= consumers[p]
+            conflict.append(c)
+        nwords = max(1, (nplaces + 63) // 64)
+        pre_words = np.array([to_words(m, nwords) for m in pre], dtype=np.uint64).reshape(
+            ntrans, nwords)
+        post_words = np.array([to_words(m, nwords) for m in post], dtype=np.uint64).reshape(
+            ntrans, nwords)
+        return NetBits(
+            net=net, nplaces=nplaces, ntrans=ntrans,
+            initial=to_mask(net.initial), final=to_mask(net.final),
+            pre=pre, post=post, consume=consume, produce=produce,
+            consumers=tuple(consumers), producers=tuple(producers), conflict=tuple(conflict),
+            nwords=nwords, pre_words=pre_words, post_words=post_words,
+        )
+
+    def is_final(self, marking: int) -> bool:
+        return self.final != 0 and marking & self.final == self.final
+
+    def enabled(self, marking: int) -> list[int]:
+        pre = self.pre
+        return [t for t in range(self.ntrans) if marking & pre[t] == pre[t]]
+
+    def fire(self, marking: int, t: int) -> int:
+        return (marking & ~self.pre[t]) | self.post[t]
+
+    def unsafe_places(self, marking: int, t: int) -> int:
+        """Places that firing ``t`` in ``marking`` would mark a second time (0 if safe)."""
+        return marking & self.produce[t]
+
+    def iteration_mask(self, subsystem: str) -> int:
+        mask = 0
+        for t in self.net.transitions:
+            if t.role is Role.ITERATION and t.subsystem == subsystem:
+                mask |= 1 << t.index
+        return mask
+
+    def marking_of(self, mask: int) -> frozenset[int]:
+        return frozenset(bits(mask))
