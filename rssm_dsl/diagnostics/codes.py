@@ -87,6 +87,20 @@ CODES: tuple[Code, ...] = (
     Code("W701", "unused-buffer", _W, "an input buffer never read or an output buffer never written"),
     Code("W702", "unused-memory", _W, "a memory variable never read"),
     Code("W703", "unused-param", _W, "a parameter never read"),
+    # simulation (rssmc simulate)
+    Code("E801", "binding-not-found", _E, "the Python module, function or class of a binding cannot be loaded"),
+    Code("E802", "operation-failed", _E, "an operation raised an error while the system was simulated"),
+    Code("E803", "wrong-return-type", _E, "an external operation or a device returned a value of the wrong type"),
+    Code("E804", "binding-signature", _E, "a bound Python callable does not accept the declared parameters"),
+    Code("E805", "simulation-deadlock", _E, "the simulation reached a marking where nothing can ever fire"),
+    Code("E806", "replay-diverged", _E, "a step of a replayed counterexample cannot be fired"),
+    Code("E807", "unsafe-firing", _E, "a firing would put a second token into a place"),
+    # render (rssmc render)
+    Code("W850", "graphviz-missing", _W, "Graphviz `dot` is not installed: no SVG figures were drawn"),
+    Code("E851", "graphviz-failed", _E, "Graphviz `dot` failed to draw a page"),
+    Code("E852", "trace-unreadable", _E, "a trace or counterexample file that cannot be read as one"),
+    Code("E853", "trace-unknown-transition", _E, "a trace fires a transition the net does not have"),
+    Code("E854", "trace-not-enabled", _E, "a trace fires a transition that is not enabled"),
     # internal
     Code("E900", "internal-error", _E, "the compiler failed: please report it"),
 )

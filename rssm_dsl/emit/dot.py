@@ -19,21 +19,35 @@ def quote(text: str) -> str:
     return f'"{escaped}"'
 
 
+def place_attrs(hpn: HPN, pid: str) -> str:
+    """The DOT attributes of a place: a circle, a dot if initially marked, dashed if fused."""
+    p = hpn.places[pid]
+    style = ', style="dashed"' if p.fusion else ""
+    token = "●" if p.initial or (p.fusion and hpn.fusions[p.fusion].initial) else ""
+    return f"shape=circle, label={quote(token)}, xlabel={quote(pid)}{style}"
+
+
+def transition_attrs(hpn: HPN, tid: str) -> str:
+    """The DOT attributes of a transition: a box with its name and [condition]."""
+    t = hpn.transitions[tid]
+    label = tid + (f"\n[{t.condition.text}]" if t.condition is not None else "")
+    return f"shape=box, height=0.2, label={quote(label)}"
+
+
+def page_attrs(page: Page) -> str:
+    """The DOT attributes of a page shown as a node of its parent's net: a double circle."""
+    return f"shape=doublecircle, label={quote(page.id)}"
+
+
 def _cluster(hpn: HPN, page: Page, places: list[str], trans: list[str], arcs: list[tuple[str, str]],
              subpages: list[Page], n: int) -> list[str]:
     out = [f"  subgraph cluster_{n} {{", f"    label={quote(page.id + '  ' + page.label)};"]
     for pid in places:
-        p = hpn.places[pid]
-        style = ', style="dashed"' if p.fusion else ""
-        token = "●" if p.initial or (p.fusion and hpn.fusions[p.fusion].initial) else ""
-        out.append(f"    {quote(pid)} [shape=circle, label={quote(token)}, "
-                   f"xlabel={quote(pid)}{style}];")
+        out.append(f"    {quote(pid)} [{place_attrs(hpn, pid)}];")
     for tid in trans:
-        t = hpn.transitions[tid]
-        label = tid + (f"\n[{t.condition.text}]" if t.condition is not None else "")
-        out.append(f"    {quote(tid)} [shape=box, height=0.2, label={quote(label)}];")
+        out.append(f"    {quote(tid)} [{transition_attrs(hpn, tid)}];")
     for sp in subpages:
-        out.append(f"    {quote(sp.id)} [shape=doublecircle, label={quote(sp.id)}];")
+        out.append(f"    {quote(sp.id)} [{page_attrs(sp)}];")
     for src, dst in arcs:
         out.append(f"    {quote(src)} -> {quote(dst)};")
     out.append("  }")

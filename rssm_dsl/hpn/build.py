@@ -57,7 +57,7 @@ class HpnBuilder:
             self.channel_of[ch.producer.qualified] = ch
             self.channel_of[ch.consumer.qualified] = ch
         self.ends: dict[tuple[str, str], _Endpoint] = {}  # (channel id, side) -> fused places
-        self._counter: dict[str, int] = {}
+        self._bodies: dict[int, str] = {}
 
     # ------------------------------------------------------------------ primitives
     def _page(self, pid: str, kind: PageKind, parent: str | None, span: Span, label: str,
@@ -213,7 +213,7 @@ class HpnBuilder:
         inputs = tuple(x.name for x in sub.inputs)
         for case in pf.cases:
             when = combination_text(inputs, case.new)
-            body = "; ".join(stmt_text(st) for st in case.body) or "skip"
+            body = self._body_text(case.body)
             op = Operation(OpKind.CASE, sub.id, body, w, pf.target, case.index, void=case.void)
             p = self._place(N.place(j, v, w, psi, case.index), pid, case.span,
                             f"{who} {pf.target}: {body}", op)
@@ -227,6 +227,13 @@ class HpnBuilder:
                                  f"{who} has computed {pf.target}")
             self._arcs(pid, [p], t_done, [N.place(j, v, w, psi, "out")])
         return pid
+
+    def _body_text(self, body: tuple[ast.Stmt, ...]) -> str:
+        key = id(body)
+        text = self._bodies.get(key)
+        if text is None:
+            text = self._bodies[key] = "; ".join(stmt_text(st) for st in body) or "skip"
+        return text
 
     # ------------------------------------------------------------------ layer 5: snd/rcv
     def _comm(self, o: _Owner, arr: Arrangement, verb: str, parent: str, span: Span,

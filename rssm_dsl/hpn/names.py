@@ -6,7 +6,7 @@ from collections.abc import Iterable
 
 
 def _idx(parts: Iterable[object]) -> str:
-    return ",".join(str(p) for p in parts)
+    return ",".join(map(str, parts))
 
 
 def place(*parts: object, sup: str = "") -> str:

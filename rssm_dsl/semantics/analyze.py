@@ -10,18 +10,14 @@ from rssm_dsl.semantics.channels import ChannelPass
 from rssm_dsl.semantics.checks import CHECKS, CheckContext
 from rssm_dsl.semantics.declarations import DeclarationPass
 from rssm_dsl.semantics.loader import Program
-from rssm_dsl.semantics.model import Agent, Buffer, Channel, Device, Subsystem, System
+from rssm_dsl.semantics.model import Agent, Buffer, Device, Subsystem, System
 from rssm_dsl.semantics.structure import Shell, StructurePass
 from rssm_dsl.syntax import ast
 
 
-def _paired(shell: Shell, channels: list[Channel]) -> tuple[list[Buffer], list[Buffer]]:
-    by_name: dict[str, Buffer] = {}
-    for ch in channels:
-        for b in (ch.producer, ch.consumer):
-            if b.owner == shell.id:
-                by_name[b.name] = b
-    buffers = [by_name.get(b.name, b) for b in shell.buffers]
+def _paired(shell: Shell, paired: dict[str, Buffer]) -> tuple[list[Buffer], list[Buffer]]:
+    """The shell's buffers, replaced by their paired versions (with the peer set)."""
+    buffers = [paired.get(b.qualified, b) for b in shell.buffers]
     return ([b for b in buffers if b.direction is ast.Direction.INPUT],
             [b for b in buffers if b.direction is ast.Direction.OUTPUT])
 
@@ -45,15 +41,17 @@ def analyze(program: Program, bag: DiagnosticBag) -> System | None:
     sysdecl = g.systems[0]
     agent_shells = StructurePass(bag, g, decls).run(sysdecl)
     channels = ChannelPass(bag, agent_shells).run()
+    paired = {b.qualified: b for ch in channels for b in (ch.producer, ch.consumer)}
 
     agents: list[Agent] = []
     sub_decls: dict[str, ast.SubsystemDecl] = {}
     written: dict[str, set[str]] = {}
+    unchecked: dict[str, set[str]] = {}
     for a in agent_shells:
         subsystems: list[Subsystem] = []
         devices: list[Device] = []
         for shell in a.shells:
-            inputs, outputs = _paired(shell, channels)
+            inputs, outputs = _paired(shell, paired)
             if shell.device:
                 devices.append(Device(a.name, shell.kind, shell.name, shell.device_type,
                                       shell.span, shell.frequency, tuple(shell.params),
@@ -68,12 +66,13 @@ def analyze(program: Program, bag: DiagnosticBag) -> System | None:
             subsystems.append(sub)
             sub_decls[sub.id] = shell.decl
             written[sub.id] = bp.usage.written
+            unchecked[sub.id] = bp.unchecked
         agents.append(Agent(a.name, a.span, tuple(subsystems), tuple(devices)))
 
     system = System(sysdecl.name, sysdecl.span, tuple(agents), tuple(channels),
                     tuple(g.consts.values()), tuple(g.externs.values()),
                     tuple(sorted(g.types.items())))
-    ctx = CheckContext(bag, system, sub_decls, written)
+    ctx = CheckContext(bag, system, sub_decls, written, unchecked)
     for check in CHECKS:
         check(ctx)
     return replace(system)

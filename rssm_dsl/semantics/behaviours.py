@@ -5,6 +5,7 @@ switches of the subsystem layer."""
 from __future__ import annotations
 
 from dataclasses import dataclass, field
+from functools import cache
 
 from rssm_dsl.diagnostics import DiagnosticBag, Related
 from rssm_dsl.semantics.declarations import Globals
@@ -13,21 +14,25 @@ from rssm_dsl.semantics.model import (
     PartialFunction, Switch,
 )
 from rssm_dsl.semantics.structure import Shell
-from rssm_dsl.semantics.typecheck import ExprChecker, Scope, Symbol
+from rssm_dsl.semantics.typecheck import ExprChecker, Scope, Symbol, did_you_mean
 from rssm_dsl.semantics.types import BOOL, Type, assignable
 from rssm_dsl.source import Span
 from rssm_dsl.syntax import ast
 
 MAX_INPUTS = 12
 MEMORY = "memory"
+_KIND_TEXT = {"param": "parameter", "const": "constant", "local": "`let` value",
+              "extern": "external operation"}
 
 
+@cache
 def combination_text(inputs: tuple[str, ...], new: tuple[bool, ...]) -> str:
     if not inputs:
         return "(no inputs)"
     return " and ".join(f"new({n})" if v else f"not new({n})" for n, v in zip(inputs, new, strict=True))
 
 
+@cache
 def combinations(n: int) -> list[tuple[bool, ...]]:
     """All 2^n combinations of new(x), ordered as the paper's Eq. 5: varpi = 1 is all new,
     and the first input varies fastest."""
@@ -78,8 +83,17 @@ class BehaviourPass:
             syms[v.name] = Symbol("memory", v.type, v.span)
         for b in shell.buffers:
             syms[b.name] = Symbol(b.direction.value, b.type, b.span)
+        # declared with a type that is unknown (already reported): known names, no checks
+        self.unresolved: dict[str, str] = {}
+        for d in shell.unresolved:
+            kind = ("param" if isinstance(d, ast.ParamDecl) else "memory"
+                    if isinstance(d, ast.MemoryDecl) else d.direction.value)
+            self.unresolved[d.name] = kind
+            syms[d.name] = Symbol(kind, None, d.span)
         self.symbols = syms
         self.all_conditions: dict[str, str] = {}  # condition name -> behaviour
+        # behaviours with a switch condition already reported: the switching check skips them
+        self.unchecked: set[str] = set()
 
     def scope(self, new_allowed: bool = False) -> Scope:
         return Scope(self.symbols, self.g.externs, new_allowed, self.input_names,
@@ -92,6 +106,13 @@ class BehaviourPass:
         if not decl.behaviours:
             self.bag.error("E609", f"{self.shell.id} has no behaviours", decl.name_span,
                            "add `behaviour NAME { ... }` and `initial NAME`")
+            return (), ()
+        if len(self.inputs) > MAX_INPUTS:
+            n = len(self.inputs)
+            self.bag.error("E504", f"{self.shell.id} has {n} input buffers: 2^{n} data cases per "
+                           "partial function are too many to enumerate", decl.name_span,
+                           f"keep at most {MAX_INPUTS} inputs per subsystem: group related "
+                           "values into one array or record buffer")
         for bd in decl.behaviours:
             for c in bd.conditions:
                 self.all_conditions.setdefault(c.name, bd.name)
@@ -120,7 +141,8 @@ class BehaviourPass:
                                related=(Related(updates[u.target].target_span, "the first one"),))
                 continue
             if u.target != MEMORY and u.target not in out_names:
-                self._bad_target(u)
+                if self.unresolved.get(u.target) != "output":
+                    self._bad_target(u)
                 continue
             updates[u.target] = u
         functions: list[PartialFunction] = []
@@ -154,10 +176,7 @@ class BehaviourPass:
             return PartialFunction(psi, target, cases, bd.span, False)
         for case in u.cases:
             self._body(case.body, target)
-        if n > MAX_INPUTS:
-            self.bag.error("E504", f"{self.shell.id} has {n} input buffers: 2^{n} data cases are "
-                           "too many to enumerate", u.target_span,
-                           f"keep at most {MAX_INPUTS} inputs per subsystem")
+        if n > MAX_INPUTS:  # reported once, in run()
             return PartialFunction(psi, target, (), u.span, True)
         return PartialFunction(psi, target, self._cases(u), u.span, True)
 
@@ -165,6 +184,7 @@ class BehaviourPass:
         inputs = self.input_names
         explicit: list[tuple[int, ast.Case]] = []
         fallback: tuple[int, ast.Case] | None = None
+        broken = False  # a condition already reported: coverage is not checked
         for i, case in enumerate(u.cases):
             if case.condition is None:
                 if fallback is not None:
@@ -173,7 +193,12 @@ class BehaviourPass:
                     continue
                 fallback = (i, case)
                 continue
+            errors = sum(d.is_error for d in self.bag.items)
             self.checker.check(case.condition, self.scope(new_allowed=True), BOOL)
+            if (sum(d.is_error for d in self.bag.items) > errors
+                    or any(n.name in self.unresolved for n in _names(case.condition))):
+                broken = True
+                continue
             try:
                 for combo in combinations(len(inputs)):
                     eval_availability(case.condition, inputs, combo)
@@ -181,17 +206,17 @@ class BehaviourPass:
                 self.bag.error("E506", "a case condition may only combine new(x) of input "
                                "buffers with and/or/not", e.span,
                                "test data values inside the case, with `if ... then ... else`")
+                broken = True
                 continue
             explicit.append((i, case))
         out: list[DataCase] = []
         missing: list[str] = []
+        overlaps: dict[tuple[int, int], list[str]] = {}
         for varpi, combo in enumerate(combinations(len(inputs)), start=1):
             covering = [(i, c) for i, c in explicit if eval_availability(c.condition, inputs, combo)]  # type: ignore[arg-type]
             if len(covering) > 1:
-                (i1, c1), (i2, c2) = covering[0], covering[1]
-                self.bag.error("E502", f"cases overlap when {combination_text(inputs, combo)}",
-                               c2.span, "make the case conditions disjoint",
-                               related=(Related(c1.span, "this case also covers it"),))
+                overlaps.setdefault((covering[0][0], covering[1][0]), []).append(
+                    combination_text(inputs, combo))
             if not covering and fallback is not None:
                 covering = [fallback]
             if not covering:
@@ -199,7 +224,11 @@ class BehaviourPass:
                 continue
             index, case = covering[0]
             out.append(DataCase(varpi, combo, case.body, case.span, index))
-        if missing:
+        for (i1, i2), combos in sorted(overlaps.items()):
+            self.bag.error("E502", "cases overlap when " + "; ".join(combos), u.cases[i2].span,
+                           "make the case conditions disjoint",
+                           related=(Related(u.cases[i1].span, "this case also covers it"),))
+        if missing and not broken:
             self.bag.error(
                 "E501", f"no case of `update {u.target}` covers: " + "; ".join(missing),
                 u.target_span, "add the missing case(s) or an `otherwise:` case",
@@ -218,8 +247,7 @@ class BehaviourPass:
                         self.bag.error("E101", f"'{stmt.name}' is already declared", stmt.span,
                                        "choose another name for the local value")
                     t = self.checker.check(stmt.value, scope)
-                    if t is not None:
-                        scope.extra[stmt.name] = Symbol("local", t, stmt.span)
+                    scope.extra[stmt.name] = Symbol("local", t, stmt.span)
                 case ast.Assign():
                     self._assign(stmt, scope, target)
 
@@ -230,7 +258,9 @@ class BehaviourPass:
             return
         sym = scope.lookup(root.name)
         if sym is None:
-            self.bag.error("E102", f"'{root.name}' is not declared here", root.span)
+            guess = did_you_mean(root.name, scope.names())
+            self.bag.error("E102", f"'{root.name}' is not declared here", root.span,
+                           f"did you mean '{guess}'?" if guess else None)
             self.checker.check(stmt.value, scope)
             return
         allowed = (sym.kind == "memory") if target == MEMORY else (
@@ -238,15 +268,17 @@ class BehaviourPass:
         if sym.kind == "input":
             self.bag.error("E402", f"'{root.name}' is an input buffer and cannot be written",
                            root.span, "inputs are filled by receiving")
+        elif sym.kind not in ("memory", "output"):
+            self.bag.error("E205", f"'{root.name}' is a {_KIND_TEXT.get(sym.kind, sym.kind)} "
+                           "and cannot be assigned", root.span,
+                           "only output buffers and memory variables are assigned; keep a "
+                           "changing value in memory")
         elif not allowed:
             what = "memory" if target == MEMORY else f"output '{target}'"
-            where = ("`update memory`" if sym.kind == "memory" else f"`update {root.name}`"
-                     if sym.kind == "output" else None)
+            where = "`update memory`" if sym.kind == "memory" else f"`update {root.name}`"
             self.bag.error(
                 "E401", f"the partial function for {what} writes '{root.name}' ({sym.kind})",
-                root.span,
-                f"canonical decomposition: move this into {where}" if where
-                else "only buffers and memory can be assigned",
+                root.span, f"canonical decomposition: move this into {where}",
             )
         reads_before = set(scope.reads)
         lt: Type | None = self.checker.check(stmt.target, scope)
@@ -307,9 +339,9 @@ class BehaviourPass:
                 return None
             leaves: tuple[Arrangement, ...] = tuple(ArrLeaf(b.name, bd.span) for b in buffers)
             return leaves[0] if len(leaves) == 1 else ArrSeq(leaves, bd.span)
-        names = {b.name for b in buffers}
-        seen: dict[str, Span] = {}
         kind = "output" if verb == "send" else "input"
+        names = {b.name for b in buffers} | {n for n, k in self.unresolved.items() if k == kind}
+        seen: dict[str, Span] = {}
 
         def convert(a: ast.Arrangement) -> Arrangement:
             match a:
@@ -327,7 +359,10 @@ class BehaviourPass:
                 case ast.ArrPar():
                     return ArrPar(tuple(convert(x) for x in a.items), a.span)
 
-        result = convert(decls[0])
+        # several declarations (E610, reported above) are checked as one sequence
+        whole = decls[0] if len(decls) == 1 else ast.ArrSeq(decls[0].span.to(decls[-1].span),
+                                                            decls)
+        result = convert(whole)
         missing = [b.name for b in buffers if b.name not in seen]
         if missing:
             self.bag.error("E606", f"`{verb}` of behaviour '{bd.name}' misses "
@@ -342,8 +377,13 @@ class BehaviourPass:
         out: list[Switch] = []
         if len(decl.initial) != 1:
             span = decl.initial[1].span if len(decl.initial) > 1 else decl.name_span
+            first = decl.behaviours[0].name if decl.behaviours else "NAME"
             self.bag.error("E601", f"{self.shell.id} needs exactly one `initial` behaviour, "
-                           f"it has {len(decl.initial)}", span)
+                           f"it has {len(decl.initial)}", span,
+                           f"add `initial {first}` (the behaviour the subsystem starts in)"
+                           if not decl.initial else "keep one `initial` line",
+                           related=tuple(Related(i.span, "an initial behaviour")
+                                         for i in decl.initial[:1] if len(decl.initial) > 1))
         for ini in decl.initial[:1]:
             if ini.behaviour not in behaviours:
                 self.bag.error("E102", f"no behaviour '{ini.behaviour}' in {self.shell.id}",
@@ -361,7 +401,10 @@ class BehaviourPass:
                                sw.target_span, "switch to `end` to finish the subsystem")
                 ok = False
             if sw.condition is not None and sw.source in behaviours:
+                errors = sum(d.is_error for d in self.bag.items)
                 self._switch_condition(sw.condition, behaviours[sw.source])
+                if sum(d.is_error for d in self.bag.items) > errors:
+                    self.unchecked.add(sw.source)
             if ok:
                 out.append(Switch(i, sw.source, None if sw.target == "end" else sw.target,
                                   sw.condition, sw.condition is None, sw.span))

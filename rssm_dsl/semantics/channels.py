@@ -2,7 +2,10 @@
 
 A buffer of a designed subsystem names its peer relative to its agent: `c`, `e.NAME`,
 `r.NAME`, `E.NAME`, `R.NAME`, or `AGENT.c` for another agent's control subsystem; a
-trailing `.BUFFER` picks one buffer of the peer when several could match.
+trailing `.BUFFER` picks one buffer of the peer. Without it, a buffer pairs with the peer's
+buffer of the opposite direction that names it back (devices always do) and is not taken by
+another buffer (by `.BUFFER` or by having its name); when several remain, the one with the
+same name wins.
 Allowed links: c-e, c-r, e-E, r-R inside an agent, and c-c between agents (T buffers).
 """
 
@@ -17,6 +20,12 @@ from rssm_dsl.syntax import ast
 
 _ALLOWED = {frozenset("ce"), frozenset("cr"), frozenset("eE"), frozenset("rR")}
 _LETTERS = {"c", "e", "r", "E", "R"}
+_TALKS_TO = {
+    "c": "a control subsystem talks to its agent's virtual effectors and receptors and to "
+         "other agents' control subsystems",
+    "e": "a virtual effector talks to its agent's control subsystem and real effectors",
+    "r": "a virtual receptor talks to its agent's control subsystem and real receptors",
+}
 
 
 def _link_allowed(a: Shell, b: Shell) -> bool:
@@ -30,6 +39,9 @@ class ChannelPass:
         self.bag = bag
         self.agents = {a.name: a for a in agents}
         self.by_id = {s.id: s for a in agents for s in a.shells}
+        self.broken = set().union(*(a.broken for a in agents))  # device instances reported
+        self.failed: set[str] = set()   # shells at the far end of a link already reported
+        self.mismatched: set[frozenset[str]] = set()  # buffer pairs with an E305 reported
 
     def _resolve(self, owner: Shell, peer: ast.PeerRef, report: bool = True
                  ) -> tuple[Shell, str | None] | None:
@@ -55,6 +67,8 @@ class ChannelPass:
         else:
             target_id, rest = f"{agent}.{letter}.{parts[1]}", parts[2:]
         target = self.by_id.get(target_id)
+        if target is None and target_id in self.broken:
+            return None  # its declaration is already reported
         if target is None:
             bag.error("E303", f"{target_id} does not exist", peer.span,
                            f"declare it in agent '{agent}'" if agent in self.agents
@@ -93,12 +107,15 @@ class ChannelPass:
                 peer, wanted = resolved
                 if not _link_allowed(shell, peer):
                     self.bag.error(
-                        "E302", f"{shell.id} cannot be linked to {peer.id}", ref.span,
+                        "E302", f"{shell.id} cannot be linked to {peer.id}: "
+                        f"{_TALKS_TO[shell.letter]}", ref.span,
                         "allowed links: c-e, c-r, e-E, r-R inside an agent, c-c between agents",
                     )
+                    self.failed.add(peer.id)
                     continue
                 partner = self._partner(shell, buf, peer, wanted, ref)
                 if partner is None:
+                    self.failed.add(peer.id)
                     continue
                 prod, cons = (buf, partner) if buf.direction is ast.Direction.OUTPUT else (partner, buf)
                 pairs[(prod.qualified, cons.qualified)] = (prod, cons)
@@ -117,10 +134,13 @@ class ChannelPass:
             candidates = [found]
         else:
             candidates = [b for b in peer.buffers if b.direction is opposite
-                          and self._points_back(b, peer, shell, buf)]
-            if peer.device and len(candidates) > 1:
+                          and self._points_back(b, peer, shell, buf)
+                          and not self._claimed(b, peer, shell, buf)]
+            if len(candidates) > 1:
                 same = [b for b in candidates if b.name == buf.name]
                 candidates = same or candidates
+        if not candidates and self._unsure(peer, opposite):
+            return None  # the peer's own buffer is broken and reported there
         if not candidates:
             word = "to" if opposite is ast.Direction.OUTPUT else "from"
             self.bag.error(
@@ -139,11 +159,57 @@ class ChannelPass:
             return None
         partner = candidates[0]
         if partner.type != buf.type:
-            self.bag.error("E305", f"'{buf.name}' is {buf.type} but its peer buffer "
-                           f"{partner.qualified} is {partner.type}", buf.span,
-                           related=(Related(partner.span, "peer buffer declared here"),))
+            pair = frozenset((buf.qualified, partner.qualified))
+            if pair not in self.mismatched:  # once per channel, seen from the first side
+                self.mismatched.add(pair)
+                self.bag.error("E305", f"'{buf.name}' is {buf.type} but its peer buffer "
+                               f"{partner.qualified} is {partner.type}", buf.span,
+                               related=(Related(partner.span, "peer buffer declared here"),))
             return None
         return partner
+
+    def _claimed(self, candidate: Buffer, holder: Shell, owner: Shell, owner_buf: Buffer
+                 ) -> bool:
+        """Is `candidate` (a buffer of `holder`) taken by another buffer of `owner`, one that
+        names it (`PEER.BUFFER`) or has its name?"""
+        for other in owner.buffers:
+            if other is owner_buf or other.direction is not owner_buf.direction:
+                continue
+            ref = owner.peers.get(other.name)
+            resolved = self._resolve(owner, ref, report=False) if ref is not None else None
+            if resolved is None or resolved[0] is not holder:
+                continue
+            if resolved[1] == candidate.name or (resolved[1] is None
+                                                 and other.name == candidate.name):
+                return True
+        return False
+
+    def _unsure(self, shell: Shell, direction: ast.Direction) -> bool:
+        """Has `shell` a buffer of this direction that could not be paired because its own
+        declaration is broken (unknown type, missing or unresolvable peer)?"""
+        if any(isinstance(d, ast.BufferDecl) and d.direction is direction
+               for d in shell.unresolved):
+            return True
+        if shell.device:
+            return False
+        for b in shell.buffers:
+            ref = shell.peers.get(b.name)
+            if b.direction is direction and (
+                    ref is None or self._resolve(shell, ref, report=False) is None):
+                return True
+        return False
+
+    def _doubtful(self) -> set[str]:
+        """Shells whose missing links may be echoes of errors reported elsewhere: the far ends
+        of rejected links and the peers named by buffers of unknown type."""
+        out = set(self.failed)
+        for shell in self.by_id.values():
+            for d in shell.unresolved:
+                if isinstance(d, ast.BufferDecl) and d.peer is not None:
+                    resolved = self._resolve(shell, d.peer, report=False)
+                    if resolved is not None:
+                        out.add(resolved[0].id)
+        return out
 
     def _finish(self, pairs: dict[tuple[str, str], tuple[Buffer, Buffer]]) -> list[Channel]:
         uses: dict[str, int] = {}
@@ -151,6 +217,7 @@ class ChannelPass:
             uses[prod.qualified] = uses.get(prod.qualified, 0) + 1
             uses[cons.qualified] = uses.get(cons.qualified, 0) + 1
         ok = True
+        doubtful = self._doubtful()
         for shell in self.by_id.values():
             for b in shell.buffers:
                 n = uses.get(b.qualified, 0)
@@ -160,7 +227,7 @@ class ChannelPass:
                                    f"connected {n} times", b.span,
                                    "each buffer belongs to exactly one channel: name the buffer "
                                    "on the other side")
-                elif n == 0 and shell.device:
+                elif n == 0 and shell.device and shell.id not in doubtful:
                     self.bag.warn("W701", f"buffer '{b.name}' of device {shell.id} is not "
                                   "connected", shell.span)
         if not ok:

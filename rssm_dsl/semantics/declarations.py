@@ -7,7 +7,9 @@ from dataclasses import dataclass, field
 
 from rssm_dsl.diagnostics import DiagnosticBag, Related
 from rssm_dsl.semantics.model import Const, Extern
-from rssm_dsl.semantics.typecheck import BUILTIN_CONSTS, BUILTIN_FUNCTIONS, ExprChecker, Scope, Symbol
+from rssm_dsl.semantics.typecheck import (
+    BUILTIN_CONSTS, BUILTIN_FUNCTIONS, ExprChecker, Scope, Symbol, did_you_mean,
+)
 from rssm_dsl.semantics.types import SCALARS, ArrayT, RecordT, Type, assignable
 from rssm_dsl.source import Span
 from rssm_dsl.syntax import ast
@@ -23,9 +25,14 @@ class Globals:
     devices: dict[str, ast.DeviceDecl] = field(default_factory=dict)
     systems: list[ast.SystemDecl] = field(default_factory=list)
     spans: dict[str, Span] = field(default_factory=dict)
+    # consts and externs whose type could not be determined (an error was reported): their
+    # uses are not reported again
+    broken: dict[str, Symbol] = field(default_factory=dict)
 
     def symbols(self) -> dict[str, Symbol]:
-        return {n: Symbol("const", c.type, c.span) for n, c in self.consts.items()}
+        out = dict(self.broken)
+        out.update({n: Symbol("const", c.type, c.span) for n, c in self.consts.items()})
+        return out
 
 
 class DeclarationPass:
@@ -63,6 +70,8 @@ class DeclarationPass:
                 case ast.DeviceDecl():
                     if self._declare(d.name, d.name_span):
                         self.g.devices[d.name] = d
+                    if d.binding is not None:
+                        self._binding(d.binding.binding, d.binding.span, "Class")
                 case ast.SystemDecl():
                     if root is not None and d in root.decls:
                         self.g.systems.append(d)
@@ -88,7 +97,9 @@ class DeclarationPass:
         if t.name in self.g.devices or t.name in self.g.consts or t.name in self.g.externs:
             self.bag.error("E103", f"'{t.name}' is not a type", t.span)
             return None
+        guess = did_you_mean(t.name, [*SCALARS, *self._type_decls])
         self.bag.error("E202", f"unknown type '{t.name}'", t.span,
+                       f"did you mean '{guess}'?" if guess else
                        "built-in types are bool, int, float and T[N]; import std.types for more")
         return None
 
@@ -132,20 +143,31 @@ class DeclarationPass:
         want = self.resolve_type(d.type) if d.type is not None else None
         scope = Scope(self.g.symbols(), {})
         got = self.checker.check(d.value, scope, want)
-        if got is None:
+        if got is None or (d.type is not None and want is None):
+            self.g.broken[d.name] = Symbol("const", None, d.name_span)
             return
         if want is not None and not assignable(got, want):
             self.bag.error("E201", f"const '{d.name}' is declared {want} but its value is {got}",
                            d.value.span)
+            self.g.broken[d.name] = Symbol("const", None, d.name_span)
             return
         self.g.consts[d.name] = Const(d.name, want or got, d.value, d.span)
+
+    def _binding(self, binding: str, span: Span, what: str) -> None:
+        """A Python binding is `package.module:name`."""
+        if BINDING_RE.match(binding):
+            return
+        module, _, name = binding.rpartition(".")
+        guess = f"{module}:{name}" if module and BINDING_RE.match(f"{module}:{name}") else None
+        self.bag.error("E208", f"binding \"{binding}\" is not of the form module:{what}", span,
+                       f'did you mean "{guess}"?' if guess and ":" not in binding else
+                       f'write the Python module, a colon and the {what} name, e.g. '
+                       f'"rssm_stdlib.lwr4plus.ops:impedance"')
 
     def _extern(self, d: ast.ExternDecl) -> None:
         if not self._declare(d.name, d.name_span):
             return
-        if not BINDING_RE.match(d.binding):
-            self.bag.error("E208", f"binding \"{d.binding}\" is not of the form module:function",
-                           d.binding_span, 'e.g. "rssm_stdlib.lwr4plus.dynamics:impedance"')
+        self._binding(d.binding, d.binding_span, "function")
         params: list[tuple[str, Type]] = []
         for p in d.params:
             pt = self.resolve_type(p.type)
@@ -153,5 +175,6 @@ class DeclarationPass:
                 params.append((p.name, pt))
         result = self.resolve_type(d.result)
         if result is None or len(params) != len(d.params):
+            self.g.broken[d.name] = Symbol("extern", None, d.name_span)
             return
         self.g.externs[d.name] = Extern(d.name, tuple(params), result, d.binding, d.span)

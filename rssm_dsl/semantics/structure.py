@@ -7,7 +7,7 @@ from dataclasses import dataclass, field
 from rssm_dsl.diagnostics import DiagnosticBag, Related
 from rssm_dsl.semantics.declarations import DeclarationPass, Globals
 from rssm_dsl.semantics.model import DEVICE_LETTER, KIND_LETTER, Buffer, Variable
-from rssm_dsl.semantics.typecheck import ExprChecker, Scope, Symbol
+from rssm_dsl.semantics.typecheck import ExprChecker, Scope, Symbol, did_you_mean
 from rssm_dsl.semantics.types import assignable
 from rssm_dsl.source import Span
 from rssm_dsl.syntax import ast
@@ -30,16 +30,20 @@ class Shell:
     decl: ast.SubsystemDecl | None = None
     device_type: str = ""
     binding: str | None = None
+    # params, memory and buffers whose type could not be resolved (an error was reported):
+    # later passes know the names but say nothing more about them
+    unresolved: list[ast.ParamDecl | ast.MemoryDecl | ast.BufferDecl] = field(
+        default_factory=list)
 
     @property
     def letter(self) -> str:
         return DEVICE_LETTER[self.kind] if self.device else KIND_LETTER[self.kind]
 
-    @property
-    def id(self) -> str:
-        if not self.device and self.kind == "control":
-            return f"{self.agent}.c"
-        return f"{self.agent}.{self.letter}.{self.name}"
+    id: str = ""              # qualified id, e.g. "a1.c", "a1.e.lwr", "a1.E.lwr"
+
+    def __post_init__(self) -> None:
+        control = not self.device and self.kind == "control"
+        self.id = f"{self.agent}.c" if control else f"{self.agent}.{self.letter}.{self.name}"
 
     def inputs(self) -> list[Buffer]:
         return [b for b in self.buffers if b.direction is ast.Direction.INPUT]
@@ -53,6 +57,7 @@ class AgentShell:
     name: str
     span: Span
     shells: list[Shell]
+    broken: set[str] = field(default_factory=set)  # ids of device instances already reported
 
 
 class StructurePass:
@@ -76,6 +81,7 @@ class StructurePass:
 
     def _agent(self, a: ast.AgentDecl) -> AgentShell:
         shells: list[Shell] = []
+        broken: set[str] = set()
         controls = [s for s in a.subsystems if s.kind is ast.SubsystemKind.CONTROL]
         if len(controls) != 1:
             self.bag.error(
@@ -103,7 +109,9 @@ class StructurePass:
             shell = self._device(a.name, d)
             if shell is not None:
                 shells.append(shell)
-        return AgentShell(a.name, a.span, shells)
+            else:
+                broken.add(f"{a.name}.{DEVICE_LETTER[d.kind.value]}.{d.name}")
+        return AgentShell(a.name, a.span, shells, broken)
 
     # ------------------------------------------------------------------ variables
     def _variable(self, name: str, span: Span, t: ast.TypeExpr, init: ast.Expr | None,
@@ -122,7 +130,8 @@ class StructurePass:
         if f is None:
             return None
         if f.hertz <= 0:
-            self.bag.error("E209", "a frequency must be positive", f.span)
+            self.bag.error("E209", f"a frequency must be positive, not {f.hertz:g} Hz", f.span,
+                           "leave the frequency out to run as fast as communication allows")
             return None
         return f.hertz
 
@@ -148,17 +157,22 @@ class StructurePass:
                 v = self._variable(p.name, p.span, p.type, p.value, init_scope, "param")
                 if v is not None:
                     shell.params.append(v)
-                    init_scope.symbols[p.name] = Symbol("param", v.type, v.span)
+                else:
+                    shell.unresolved.append(p)
+                init_scope.symbols[p.name] = Symbol("param", v.type if v else None, p.span)
         for m in memory:
             if declare(m.name, m.name_span):
                 v = self._variable(m.name, m.span, m.type, m.init, init_scope, "memory")
                 if v is not None:
                     shell.memory.append(v)
+                else:
+                    shell.unresolved.append(m)
         for b in buffers:
             if not declare(b.name, b.name_span):
                 continue
             bt = self.decls.resolve_type(b.type)
             if bt is None:
+                shell.unresolved.append(b)
                 continue
             if b.init is not None:
                 got = self.checker.check(b.init, init_scope, bt)
@@ -177,17 +191,22 @@ class StructurePass:
             if b.peer is None:
                 self.bag.error("E307", f"buffer '{b.name}' of {shell.id} does not say which "
                                "subsystem it talks to", b.name_span,
-                               f"write `{b.direction.value} {b.name}: ... "
-                               f"{'to' if b.direction is ast.Direction.OUTPUT else 'from'} e.NAME`")
+                               f"e.g. `{b.direction.value} {b.name}: ... "
+                               f"{'to' if b.direction is ast.Direction.OUTPUT else 'from'} "
+                               f"{_usual_peer(s.kind, b.direction)}`")
         return shell
 
     def _device(self, agent: str, d: ast.DeviceInstance) -> Shell | None:
         decl = self.g.devices.get(d.device)
         if decl is None:
+            known = ", ".join(sorted(self.g.devices)) or "none"
+            guess = did_you_mean(d.device, self.g.devices)
             if d.device in self.g.spans:
-                self.bag.error("E103", f"'{d.device}' is not a device type", d.device_span)
+                self.bag.error("E103", f"'{d.device}' is not a device type", d.device_span,
+                               f"device types declared or imported: {known}")
             else:
                 self.bag.error("E102", f"unknown device type '{d.device}'", d.device_span,
+                               f"did you mean '{guess}'?" if guess else
                                "declare it with `device effector NAME { ... }` or import it")
             return None
         if decl.kind is not d.kind:
@@ -203,3 +222,12 @@ class StructurePass:
                 self.bag.error("E302", "a device buffer does not name its peer; the virtual "
                                "subsystem names the device", b.peer.span)
         return shell
+
+
+def _usual_peer(kind: ast.SubsystemKind, direction: ast.Direction) -> str:
+    """The peer a buffer of this subsystem kind and direction usually names."""
+    if kind is ast.SubsystemKind.CONTROL:
+        return "e.NAME" if direction is ast.Direction.OUTPUT else "r.NAME"
+    device = "E.NAME" if kind is ast.SubsystemKind.EFFECTOR else "R.NAME"
+    to_c = (direction is ast.Direction.INPUT) == (kind is ast.SubsystemKind.EFFECTOR)
+    return "c" if to_c else device

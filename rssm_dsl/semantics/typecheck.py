@@ -2,7 +2,8 @@
 
 from __future__ import annotations
 
-from collections.abc import Callable
+import difflib
+from collections.abc import Callable, Iterable
 from dataclasses import dataclass, field
 
 from rssm_dsl.diagnostics import DiagnosticBag
@@ -21,10 +22,20 @@ BUILTIN_CONSTS: dict[str, tuple[Type, float]] = {"pi": (FLOAT, 3.141592653589793
                                                  "inf": (FLOAT, float("inf"))}
 
 
+def did_you_mean(name: str, candidates: Iterable[str]) -> str | None:
+    """The declared name closest to a misspelt one (same letters in another case first)."""
+    pool = sorted(set(candidates))
+    same = [c for c in pool if c.lower() == name.lower()]
+    if same:
+        return same[0]
+    close = difflib.get_close_matches(name, pool, n=1, cutoff=0.75)
+    return close[0] if close else None
+
+
 @dataclass(frozen=True)
 class Symbol:
-    kind: str   # const | param | memory | input | output | local | condition | builtin
-    type: Type
+    kind: str   # const | extern | param | memory | input | output | local | condition
+    type: Type | None  # None: declared, but its type is unknown (an error was reported)
     span: Span
 
 
@@ -41,6 +52,9 @@ class Scope:
 
     def lookup(self, name: str) -> Symbol | None:
         return self.extra.get(name) or self.symbols.get(name)
+
+    def names(self) -> set[str]:
+        return set(self.symbols) | set(self.extra) | set(BUILTIN_CONSTS)
 
 
 class ExprChecker:
@@ -69,8 +83,10 @@ class ExprChecker:
         if sym is None:
             if e.name in BUILTIN_CONSTS:
                 return BUILTIN_CONSTS[e.name][0]
+            guess = did_you_mean(e.name, scope.names())
             self.bag.error("E102", f"'{e.name}' is not declared here", e.span,
-                           "declare it as memory, param, a buffer or a const")
+                           f"did you mean '{guess}'?" if guess
+                           else "declare it as memory, param, a buffer or a const")
             return None
         scope.reads.add(e.name)
         return sym.type
@@ -224,7 +240,14 @@ class ExprChecker:
             return ext.result
         if e.function in BUILTIN_FUNCTIONS:
             return self._builtin(e, scope)
+        sym = scope.lookup(e.function)
+        if sym is not None and sym.kind == "extern":  # declared, but its signature is broken
+            for a in e.args:
+                self.check(a, scope)
+            return None
+        guess = did_you_mean(e.function, [*scope.externs, *BUILTIN_FUNCTIONS])
         self.bag.error("E102", f"function '{e.function}' is not declared", e.function_span,
+                       f"did you mean '{guess}'?" if guess else
                        "declare it with `extern NAME(...) -> TYPE = \"module:function\"`")
         for a in e.args:
             self.check(a, scope)
@@ -239,6 +262,9 @@ class ExprChecker:
             self.bag.error("E503", "new() takes the name of one input buffer", e.span)
             return BOOL
         name = e.args[0].name
+        sym = scope.lookup(name)
+        if sym is not None and sym.kind == "input" and sym.type is None:
+            return BOOL  # an input whose type is unknown (already reported)
         if name not in scope.inputs:
             self.bag.error("E503", f"new({name}): '{name}' is not an input buffer of this "
                            "subsystem", e.args[0].span,

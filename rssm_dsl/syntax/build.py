@@ -1,16 +1,31 @@
-"""Turn Lark's parse tree into the AST without recursion (deep input must not crash us)."""
+"""Build the AST while Lark parses: every grammar rule's callback makes an AST node.
+
+The callbacks run on each LALR reduction (no parse tree is built, nothing recurses), and
+each node's span runs from its first to its last token (keywords the grammar drops are not
+part of it). Nesting deeper than MAX_DEPTH is refused (E008) so that later passes, which
+recurse over expressions, never hit Python's recursion limit."""
 
 from __future__ import annotations
 
 from collections.abc import Callable
 from typing import Any
 
-from lark import Token, Tree
+import threading
+from dataclasses import dataclass
+
+from lark import Token
 
 from rssm_dsl.source import SourceFile, Span
 from rssm_dsl.syntax import ast
 
 MAX_DEPTH = 64
+
+
+@dataclass(frozen=True, slots=True)
+class _Node:
+    """What a rule callback knows about its rule besides the children: the span."""
+
+    span: Span
 
 
 class NestingTooDeep(Exception):
@@ -34,16 +49,35 @@ class AstBuilder:
         self._depth: dict[int, int] = {}
 
     # ------------------------------------------------------------- helpers
-    def _span(self, tree: Tree[Token]) -> Span:
-        m = tree.meta
-        if getattr(m, "empty", True):
-            return self.source.span(0, 0)
-        return Span(self.source.path, m.line, m.column, m.end_line, m.end_column,
-                    m.start_pos, m.end_pos)
+    @staticmethod
+    def _span(t: _Node) -> Span:
+        return t.span
 
     def _tok(self, tok: Token) -> Span:
-        start = tok.start_pos or 0
-        return self.source.span(start, tok.end_pos if tok.end_pos is not None else start)
+        if tok.line is None or tok.start_pos is None:
+            start = tok.start_pos or 0
+            return self.source.span(start, tok.end_pos if tok.end_pos is not None else start)
+        return Span(self.source.path, tok.line, tok.column, tok.end_line or tok.line,
+                    tok.end_column or tok.column, tok.start_pos, tok.end_pos or tok.start_pos)
+
+    def children_span(self, children: list[Any]) -> Span:
+        first: Span | None = None
+        last: Span | None = None
+        for c in children:
+            if isinstance(c, Token):
+                sp: Span | None = self._tok(c)
+            elif isinstance(c, tuple) and c and isinstance(c[-1], Span):
+                sp = c[-1]
+            else:
+                sp = getattr(c, "span", None)
+            if sp is None:
+                continue
+            if first is None:
+                first = sp
+            last = sp
+        if first is None or last is None:
+            return self.source.span(0, 0)
+        return first.to(last)
 
     def _deep(self, node: Any, children: list[Any], span: Span) -> Any:
         depth = 1 + max((self._depth.get(id(c), 0) for c in children), default=0)
@@ -52,64 +86,53 @@ class AstBuilder:
         self._depth[id(node)] = depth
         return node
 
-    # ------------------------------------------------------------- driver
-    def build(self, tree: Tree[Token]) -> ast.Module:
-        results: dict[int, Any] = {}
-        for sub in tree.iter_subtrees():
-            kids = [results[id(c)] if isinstance(c, Tree) else c for c in sub.children]
-            handler: Callable[[Tree[Token], list[Any]], Any] = getattr(self, "r_" + sub.data)
-            results[id(sub)] = handler(sub, kids)
-        module = results[id(tree)]
-        assert isinstance(module, ast.Module)
-        return module
-
     # ------------------------------------------------------------- module level
-    def r_start(self, t: Tree[Token], k: list[Any]) -> ast.Module:
+    def r_start(self, t: _Node, k: list[Any]) -> ast.Module:
         imports = tuple(x for x in k if isinstance(x, ast.Import))
         decls = tuple(x for x in k if not isinstance(x, ast.Import))
         return ast.Module(self._span(t), self.source.path, imports, decls)
 
-    def r_import_decl(self, t: Tree[Token], k: list[Any]) -> ast.Import:
+    def r_import_decl(self, t: _Node, k: list[Any]) -> ast.Import:
         path, quoted = k[0]
         return ast.Import(self._span(t), path, quoted)
 
-    def r_dotted_path(self, t: Tree[Token], k: list[Any]) -> tuple[str, bool]:
+    def r_dotted_path(self, t: _Node, k: list[Any]) -> tuple[str, bool]:
         return ".".join(str(x) for x in k), False
 
-    def r_string_path(self, t: Tree[Token], k: list[Any]) -> tuple[str, bool]:
+    def r_string_path(self, t: _Node, k: list[Any]) -> tuple[str, bool]:
         return _unquote(str(k[0])), True
 
-    def r_record_decl(self, t: Tree[Token], k: list[Any]) -> ast.RecordDecl:
+    def r_record_decl(self, t: _Node, k: list[Any]) -> ast.RecordDecl:
         return ast.RecordDecl(self._span(t), str(k[0]), self._tok(k[0]), tuple(k[1:]))
 
-    def r_field_decl(self, t: Tree[Token], k: list[Any]) -> ast.FieldDecl:
+    def r_field_decl(self, t: _Node, k: list[Any]) -> ast.FieldDecl:
         return ast.FieldDecl(self._span(t), str(k[0]), k[1])
 
-    def r_alias_decl(self, t: Tree[Token], k: list[Any]) -> ast.AliasDecl:
+    def r_alias_decl(self, t: _Node, k: list[Any]) -> ast.AliasDecl:
         return ast.AliasDecl(self._span(t), str(k[0]), self._tok(k[0]), k[1])
 
-    def r_named_type(self, t: Tree[Token], k: list[Any]) -> ast.NamedType:
+    def r_named_type(self, t: _Node, k: list[Any]) -> ast.NamedType:
         return ast.NamedType(self._span(t), str(k[0]))
 
-    def r_array_type(self, t: Tree[Token], k: list[Any]) -> ast.ArrayType:
+    def r_array_type(self, t: _Node, k: list[Any]) -> ast.ArrayType:
         return self._deep(ast.ArrayType(self._span(t), k[0], int(k[1])), k, self._span(t))
 
-    def r_const_decl(self, t: Tree[Token], k: list[Any]) -> ast.ConstDecl:
+    def r_const_decl(self, t: _Node, k: list[Any]) -> ast.ConstDecl:
         return ast.ConstDecl(self._span(t), str(k[0]), self._tok(k[0]), k[1], k[2])
 
-    def r_extern_decl(self, t: Tree[Token], k: list[Any]) -> ast.ExternDecl:
+    def r_extern_decl(self, t: _Node, k: list[Any]) -> ast.ExternDecl:
         params = tuple(x for x in k[1:-2] if isinstance(x, ast.Param))
         return ast.ExternDecl(self._span(t), str(k[0]), self._tok(k[0]), params, k[-2],
                               _unquote(str(k[-1])), self._tok(k[-1]))
 
-    def r_param(self, t: Tree[Token], k: list[Any]) -> ast.Param:
+    def r_param(self, t: _Node, k: list[Any]) -> ast.Param:
         return ast.Param(self._span(t), str(k[0]), k[1])
 
     # ------------------------------------------------------------- devices
-    def r_device_kind(self, t: Tree[Token], k: list[Any]) -> ast.DeviceKind:
+    def r_device_kind(self, t: _Node, k: list[Any]) -> ast.DeviceKind:
         return ast.DeviceKind(str(k[0]))
 
-    def r_device_decl(self, t: Tree[Token], k: list[Any]) -> ast.DeviceDecl:
+    def r_device_decl(self, t: _Node, k: list[Any]) -> ast.DeviceDecl:
         items = k[3:]
         bindings = [x for x in items if isinstance(x, ast.BindingDecl)]
         return ast.DeviceDecl(
@@ -119,14 +142,14 @@ class AstBuilder:
             bindings[0] if bindings else None,
         )
 
-    def r_binding_decl(self, t: Tree[Token], k: list[Any]) -> ast.BindingDecl:
+    def r_binding_decl(self, t: _Node, k: list[Any]) -> ast.BindingDecl:
         return ast.BindingDecl(self._span(t), _unquote(str(k[0])))
 
     # ------------------------------------------------------------- structure
-    def r_system_decl(self, t: Tree[Token], k: list[Any]) -> ast.SystemDecl:
+    def r_system_decl(self, t: _Node, k: list[Any]) -> ast.SystemDecl:
         return ast.SystemDecl(self._span(t), str(k[0]), self._tok(k[0]), tuple(k[1:]))
 
-    def r_agent_decl(self, t: Tree[Token], k: list[Any]) -> ast.AgentDecl:
+    def r_agent_decl(self, t: _Node, k: list[Any]) -> ast.AgentDecl:
         items = k[1:]
         return ast.AgentDecl(
             self._span(t), str(k[0]), self._tok(k[0]),
@@ -134,10 +157,10 @@ class AstBuilder:
             tuple(x for x in items if isinstance(x, ast.DeviceInstance)),
         )
 
-    def r_subsystem_kind(self, t: Tree[Token], k: list[Any]) -> tuple[ast.SubsystemKind, Span]:
+    def r_subsystem_kind(self, t: _Node, k: list[Any]) -> tuple[ast.SubsystemKind, Span]:
         return ast.SubsystemKind(str(k[0])), self._tok(k[0])
 
-    def r_subsystem_decl(self, t: Tree[Token], k: list[Any]) -> ast.SubsystemDecl:
+    def r_subsystem_decl(self, t: _Node, k: list[Any]) -> ast.SubsystemDecl:
         (kind, kind_span), name, freq = k[0], k[1], k[2]
         items = k[3:]
 
@@ -152,37 +175,37 @@ class AstBuilder:
             of(ast.BehaviourDecl), of(ast.InitialDecl), of(ast.SwitchDecl),
         )
 
-    def r_device_instance(self, t: Tree[Token], k: list[Any]) -> ast.DeviceInstance:
+    def r_device_instance(self, t: _Node, k: list[Any]) -> ast.DeviceInstance:
         return ast.DeviceInstance(self._span(t), k[0], str(k[1]), self._tok(k[1]), str(k[2]),
                                   self._tok(k[2]), k[3])
 
-    def r_frequency(self, t: Tree[Token], k: list[Any]) -> ast.Frequency:
+    def r_frequency(self, t: _Node, k: list[Any]) -> ast.Frequency:
         value = k[0].value
         unit = str(k[1])
         return ast.Frequency(self._span(t), float(value) * (1000.0 if unit == "kHz" else 1.0))
 
-    def r_freq_unit(self, t: Tree[Token], k: list[Any]) -> str:
+    def r_freq_unit(self, t: _Node, k: list[Any]) -> str:
         return str(k[0])
 
-    def r_memory_decl(self, t: Tree[Token], k: list[Any]) -> ast.MemoryDecl:
+    def r_memory_decl(self, t: _Node, k: list[Any]) -> ast.MemoryDecl:
         return ast.MemoryDecl(self._span(t), str(k[0]), self._tok(k[0]), k[1], k[2])
 
-    def r_param_decl(self, t: Tree[Token], k: list[Any]) -> ast.ParamDecl:
+    def r_param_decl(self, t: _Node, k: list[Any]) -> ast.ParamDecl:
         return ast.ParamDecl(self._span(t), str(k[0]), self._tok(k[0]), k[1], k[2])
 
-    def r_direction(self, t: Tree[Token], k: list[Any]) -> ast.Direction:
+    def r_direction(self, t: _Node, k: list[Any]) -> ast.Direction:
         return ast.Direction(str(k[0]))
 
-    def r_peer_arrow(self, t: Tree[Token], k: list[Any]) -> tuple[str, Span]:
+    def r_peer_arrow(self, t: _Node, k: list[Any]) -> tuple[str, Span]:
         return str(k[0]), self._tok(k[0])
 
-    def r_mode(self, t: Tree[Token], k: list[Any]) -> tuple[ast.Mode, Span]:
+    def r_mode(self, t: _Node, k: list[Any]) -> tuple[ast.Mode, Span]:
         return ast.Mode(str(k[0])), self._tok(k[0])
 
-    def r_peer(self, t: Tree[Token], k: list[Any]) -> ast.PeerRef:
+    def r_peer(self, t: _Node, k: list[Any]) -> ast.PeerRef:
         return ast.PeerRef(self._span(t), tuple(str(x) for x in k))
 
-    def r_buffer_decl(self, t: Tree[Token], k: list[Any]) -> ast.BufferDecl:
+    def r_buffer_decl(self, t: _Node, k: list[Any]) -> ast.BufferDecl:
         direction, name, type_, arrow, peer, mode, init = k
         return ast.BufferDecl(
             self._span(t), direction, str(name), self._tok(name), type_,
@@ -190,7 +213,7 @@ class AstBuilder:
         )
 
     # ------------------------------------------------------------- behaviours
-    def r_behaviour_decl(self, t: Tree[Token], k: list[Any]) -> ast.BehaviourDecl:
+    def r_behaviour_decl(self, t: _Node, k: list[Any]) -> ast.BehaviourDecl:
         items = k[1:]
         sends = tuple(x[1] for x in items if isinstance(x, tuple) and x[0] == "send")
         receives = tuple(x[1] for x in items if isinstance(x, tuple) and x[0] == "receive")
@@ -201,69 +224,69 @@ class AstBuilder:
             sends, receives,
         )
 
-    def r_update_target(self, t: Tree[Token], k: list[Any]) -> Token:
+    def r_update_target(self, t: _Node, k: list[Any]) -> Token:
         tok: Token = k[0]
         return tok
 
-    def r_update_plain(self, t: Tree[Token], k: list[Any]) -> ast.UpdateDecl:
+    def r_update_plain(self, t: _Node, k: list[Any]) -> ast.UpdateDecl:
         span = self._span(t)
         return ast.UpdateDecl(span, str(k[0]), self._tok(k[0]),
                               (ast.Case(span, None, tuple(k[1:])),), True)
 
-    def r_update_cases(self, t: Tree[Token], k: list[Any]) -> ast.UpdateDecl:
+    def r_update_cases(self, t: _Node, k: list[Any]) -> ast.UpdateDecl:
         return ast.UpdateDecl(self._span(t), str(k[0]), self._tok(k[0]), tuple(k[1:]), False)
 
-    def r_case(self, t: Tree[Token], k: list[Any]) -> ast.Case:
+    def r_case(self, t: _Node, k: list[Any]) -> ast.Case:
         return ast.Case(self._span(t), k[0], tuple(k[1:]))
 
-    def r_otherwise(self, t: Tree[Token], k: list[Any]) -> ast.Case:
+    def r_otherwise(self, t: _Node, k: list[Any]) -> ast.Case:
         return ast.Case(self._span(t), None, tuple(k))
 
-    def r_condition_kind(self, t: Tree[Token], k: list[Any]) -> str:
+    def r_condition_kind(self, t: _Node, k: list[Any]) -> str:
         return str(k[0])
 
-    def r_condition_decl(self, t: Tree[Token], k: list[Any]) -> ast.ConditionDecl:
+    def r_condition_decl(self, t: _Node, k: list[Any]) -> ast.ConditionDecl:
         return ast.ConditionDecl(self._span(t), k[0], str(k[1]), self._tok(k[1]), k[2])
 
-    def r_send_decl(self, t: Tree[Token], k: list[Any]) -> tuple[str, ast.Arrangement]:
+    def r_send_decl(self, t: _Node, k: list[Any]) -> tuple[str, ast.Arrangement]:
         return "send", k[0]
 
-    def r_receive_decl(self, t: Tree[Token], k: list[Any]) -> tuple[str, ast.Arrangement]:
+    def r_receive_decl(self, t: _Node, k: list[Any]) -> tuple[str, ast.Arrangement]:
         return "receive", k[0]
 
-    def r_arr_seq(self, t: Tree[Token], k: list[Any]) -> ast.ArrSeq:
+    def r_arr_seq(self, t: _Node, k: list[Any]) -> ast.ArrSeq:
         span = self._span(t)
         return self._deep(ast.ArrSeq(span, tuple(k)), k, span)
 
-    def r_arr_par(self, t: Tree[Token], k: list[Any]) -> ast.ArrPar:
+    def r_arr_par(self, t: _Node, k: list[Any]) -> ast.ArrPar:
         span = self._span(t)
         return self._deep(ast.ArrPar(span, tuple(k)), k, span)
 
-    def r_arr_buffer(self, t: Tree[Token], k: list[Any]) -> ast.ArrBuffer:
+    def r_arr_buffer(self, t: _Node, k: list[Any]) -> ast.ArrBuffer:
         return ast.ArrBuffer(self._span(t), str(k[0]))
 
-    def r_initial_decl(self, t: Tree[Token], k: list[Any]) -> ast.InitialDecl:
+    def r_initial_decl(self, t: _Node, k: list[Any]) -> ast.InitialDecl:
         return ast.InitialDecl(self._span(t), str(k[0]), self._tok(k[0]))
 
-    def r_switch_when(self, t: Tree[Token], k: list[Any]) -> ast.SwitchDecl:
+    def r_switch_when(self, t: _Node, k: list[Any]) -> ast.SwitchDecl:
         return ast.SwitchDecl(self._span(t), str(k[0]), self._tok(k[0]), str(k[1]),
                               self._tok(k[1]), k[2])
 
-    def r_switch_otherwise(self, t: Tree[Token], k: list[Any]) -> ast.SwitchDecl:
+    def r_switch_otherwise(self, t: _Node, k: list[Any]) -> ast.SwitchDecl:
         return ast.SwitchDecl(self._span(t), str(k[0]), self._tok(k[0]), str(k[1]),
                               self._tok(k[1]), None)
 
     # ------------------------------------------------------------- statements
-    def r_assign(self, t: Tree[Token], k: list[Any]) -> ast.Assign:
+    def r_assign(self, t: _Node, k: list[Any]) -> ast.Assign:
         return ast.Assign(self._span(t), k[0], k[1])
 
-    def r_let(self, t: Tree[Token], k: list[Any]) -> ast.Let:
+    def r_let(self, t: _Node, k: list[Any]) -> ast.Let:
         return ast.Let(self._span(t), str(k[0]), k[1])
 
-    def r_skip(self, t: Tree[Token], k: list[Any]) -> ast.Skip:
+    def r_skip(self, t: _Node, k: list[Any]) -> ast.Skip:
         return ast.Skip(self._span(t))
 
-    def r_lvalue(self, t: Tree[Token], k: list[Any]) -> ast.Expr:
+    def r_lvalue(self, t: _Node, k: list[Any]) -> ast.Expr:
         node: ast.Expr = ast.Name(self._tok(k[0]), str(k[0]))
         for kind, value, span in k[1:]:
             whole = node.span.to(span)
@@ -275,17 +298,17 @@ class AstBuilder:
             node = self._deep(node, [prev, value], whole)
         return node
 
-    def r_lv_field(self, t: Tree[Token], k: list[Any]) -> tuple[str, Any, Span]:
+    def r_lv_field(self, t: _Node, k: list[Any]) -> tuple[str, Any, Span]:
         return "field", str(k[0]), self._span(t)
 
-    def r_lv_index(self, t: Tree[Token], k: list[Any]) -> tuple[str, Any, Span]:
+    def r_lv_index(self, t: _Node, k: list[Any]) -> tuple[str, Any, Span]:
         return "index", k[0], self._span(t)
 
     # ------------------------------------------------------------- expressions
     def _expr(self, node: ast.Expr, children: list[Any]) -> ast.Expr:
         return self._deep(node, children, node.span)  # type: ignore[no-any-return]
 
-    def r_if_expr(self, t: Tree[Token], k: list[Any]) -> ast.Expr:
+    def r_if_expr(self, t: _Node, k: list[Any]) -> ast.Expr:
         return self._expr(ast.IfExpr(self._span(t), k[0], k[1], k[2]), k)
 
     def _fold(self, op: str, k: list[Any]) -> ast.Expr:
@@ -294,13 +317,13 @@ class AstBuilder:
             node = self._expr(ast.Binary(node.span.to(right.span), op, node, right), [node, right])
         return node
 
-    def r_or_expr(self, t: Tree[Token], k: list[Any]) -> ast.Expr:
+    def r_or_expr(self, t: _Node, k: list[Any]) -> ast.Expr:
         return self._fold("or", k)
 
-    def r_and_expr(self, t: Tree[Token], k: list[Any]) -> ast.Expr:
+    def r_and_expr(self, t: _Node, k: list[Any]) -> ast.Expr:
         return self._fold("and", k)
 
-    def r_not_op(self, t: Tree[Token], k: list[Any]) -> ast.Expr:
+    def r_not_op(self, t: _Node, k: list[Any]) -> ast.Expr:
         return self._expr(ast.Unary(self._span(t), "not", k[0]), k)
 
     def _chain(self, k: list[Any]) -> ast.Expr:
@@ -312,51 +335,75 @@ class AstBuilder:
             )
         return node
 
-    def r_comparison(self, t: Tree[Token], k: list[Any]) -> ast.Expr:
+    def r_comparison(self, t: _Node, k: list[Any]) -> ast.Expr:
         return self._chain(k)
 
     r_sum = r_comparison
     r_product = r_comparison
 
-    def r_comp_op(self, t: Tree[Token], k: list[Any]) -> str:
+    def r_comp_op(self, t: _Node, k: list[Any]) -> str:
         return str(k[0])
 
     r_add_op = r_comp_op
     r_mul_op = r_comp_op
 
-    def r_neg(self, t: Tree[Token], k: list[Any]) -> ast.Expr:
+    def r_neg(self, t: _Node, k: list[Any]) -> ast.Expr:
         return self._expr(ast.Unary(self._span(t), "-", k[0]), k)
 
-    def r_field(self, t: Tree[Token], k: list[Any]) -> ast.Expr:
+    def r_field(self, t: _Node, k: list[Any]) -> ast.Expr:
         return self._expr(ast.FieldAccess(self._span(t), k[0], str(k[1])), k)
 
-    def r_index(self, t: Tree[Token], k: list[Any]) -> ast.Expr:
+    def r_index(self, t: _Node, k: list[Any]) -> ast.Expr:
         return self._expr(ast.Index(self._span(t), k[0], k[1]), k)
 
-    def r_call(self, t: Tree[Token], k: list[Any]) -> ast.Expr:
+    def r_call(self, t: _Node, k: list[Any]) -> ast.Expr:
         args = [a for a in k[1:] if a is not None]
         return self._expr(ast.Call(self._span(t), str(k[0]), self._tok(k[0]), tuple(args)), args)
 
-    def r_number(self, t: Tree[Token], k: list[Any]) -> ast.Expr:
+    def r_number(self, t: _Node, k: list[Any]) -> ast.Expr:
         tok: Token = k[0]
         value: int | float = int(tok) if tok.type == "INT" else float(tok)
         return ast.Literal(self._tok(tok), value)
 
-    def r_true(self, t: Tree[Token], k: list[Any]) -> ast.Expr:
+    def r_true(self, t: _Node, k: list[Any]) -> ast.Expr:
         return ast.Literal(self._span(t), True)
 
-    def r_false(self, t: Tree[Token], k: list[Any]) -> ast.Expr:
+    def r_false(self, t: _Node, k: list[Any]) -> ast.Expr:
         return ast.Literal(self._span(t), False)
 
-    def r_name(self, t: Tree[Token], k: list[Any]) -> ast.Expr:
+    def r_name(self, t: _Node, k: list[Any]) -> ast.Expr:
         return ast.Name(self._tok(k[0]), str(k[0]))
 
-    def r_array_lit(self, t: Tree[Token], k: list[Any]) -> ast.Expr:
+    def r_array_lit(self, t: _Node, k: list[Any]) -> ast.Expr:
         items = [x for x in k if x is not None]
         return self._expr(ast.ArrayLit(self._span(t), tuple(items)), items)
 
-    def r_record_lit(self, t: Tree[Token], k: list[Any]) -> ast.Expr:
+    def r_record_lit(self, t: _Node, k: list[Any]) -> ast.Expr:
         return self._expr(ast.RecordLit(self._span(t), tuple(k)), [v for _, v in k])
 
-    def r_field_init(self, t: Tree[Token], k: list[Any]) -> tuple[str, ast.Expr]:
+    def r_field_init(self, t: _Node, k: list[Any]) -> tuple[str, ast.Expr]:
         return str(k[0]), k[1]
+
+
+_current = threading.local()
+
+
+class Callbacks:
+    """The object Lark calls on each reduction; it forwards to the AstBuilder of the parse
+    running in this thread (the Lark instance is built once and shared)."""
+
+    def __getattr__(self, rule: str) -> Any:
+        method = getattr(AstBuilder, "r_" + rule, None)
+        if method is None:
+            raise AttributeError(rule)
+
+        def callback(children: list[Any]) -> Any:
+            builder: AstBuilder = _current.builder
+            return method(builder, _Node(builder.children_span(children)), children)
+
+        return callback
+
+
+def building(builder: AstBuilder) -> None:
+    """Make `builder` receive the callbacks of the parses this thread runs next."""
+    _current.builder = builder

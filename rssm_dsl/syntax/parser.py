@@ -11,7 +11,9 @@ from __future__ import annotations
 from dataclasses import dataclass
 from functools import cache
 
-from lark import Lark, Token, Tree
+from typing import Any
+
+from lark import Lark, Token
 from lark.exceptions import UnexpectedCharacters, UnexpectedToken
 from lark.parsers.lalr_interactive_parser import InteractiveParser
 
@@ -19,7 +21,7 @@ from rssm_dsl.diagnostics import Diagnostic
 from rssm_dsl.resources import grammar_text
 from rssm_dsl.source import SourceFile, Span
 from rssm_dsl.syntax import ast
-from rssm_dsl.syntax.build import AstBuilder, NestingTooDeep
+from rssm_dsl.syntax.build import AstBuilder, Callbacks, NestingTooDeep, building
 
 MAX_ERRORS = 25
 _CLOSERS = ("}", ")", "]", ":")
@@ -37,8 +39,8 @@ def _lark() -> Lark:
         grammar_text(),
         parser="lalr",
         lexer="basic",
-        propagate_positions=True,
         maybe_placeholders=True,
+        transformer=Callbacks(),
         cache=False,
     )
 
@@ -96,6 +98,24 @@ def _expected(names: set[str]) -> str:
     return "one of " + ", ".join(shown) if len(shown) > 1 else shown[0]
 
 
+# Characters pasted from papers and word processors that look like RSSM operators.
+_LOOKALIKES = {
+    "\u2212": "-", "\u2013": "-", "\u2014": "-", "\u00d7": "*", "\u22c5": "*",
+    "\u00f7": "/", "\u2264": "<=", "\u2265": ">=", "\u2260": "!=", "\u201c": '"',
+    "\u201d": '"', "\u2254": ":=",
+}
+
+
+def _character_hint(char: str) -> str:
+    if char in _LOOKALIKES:
+        return f"this only looks like '{_LOOKALIKES[char]}': type '{_LOOKALIKES[char]}' instead"
+    if char == "#":
+        return "comments start with //"
+    if char.isspace():
+        return "replace it with an ordinary space"
+    return "remove it; names are ASCII letters, digits and '_'"
+
+
 class _Driver:
     def __init__(self, source: SourceFile) -> None:
         self.source = source
@@ -117,7 +137,7 @@ class _Driver:
         return self.source.span(start, max(end, start))
 
     # -- the loop
-    def run(self) -> Tree[Token] | None:
+    def run(self) -> Any:
         ip = _lark().parse_interactive(self.source.text)
         while True:
             try:
@@ -131,8 +151,8 @@ class _Driver:
                 pos = e.pos_in_stream
                 char = self.source.text[pos]
                 self._report(
-                    "E006", f"unexpected character {char!r}", self.source.span(pos, pos + 1),
-                    "remove it; comments start with //",
+                    "E006", f"unexpected character {char!r} (U+{ord(char):04X})",
+                    self.source.span(pos, pos + 1), _character_hint(char),
                 )
                 state = ip.lexer_thread.state
                 assert state is not None
@@ -158,8 +178,11 @@ class _Driver:
             else:
                 message, hint = f"expected {_expected(expected)}, found {_describe(tok)}", None
             self._report("E005", message, self._token_span(tok), hint)
-            ip.feed_token(Token.new_borrow_pos(term, text, tok))
-            ip.feed_token(tok)
+            try:
+                ip.feed_token(Token.new_borrow_pos(term, text, tok))
+                ip.feed_token(tok)
+            except UnexpectedToken:
+                pass  # the repair did not hold on the real stack: the token is dropped
             return
         self._report(
             "E005", f"expected {_expected(expected)}, found {_describe(tok)}",
@@ -173,28 +196,34 @@ class _Driver:
         out += [(v, t) for t, v in (("NAME", "_"), ("INT", "0")) if t in expected]
         return out
 
-    def _finish(self, ip: InteractiveParser) -> Tree[Token] | None:
+    def _finish(self, ip: InteractiveParser) -> Any:
         n = len(self.source.text)
         line, column = self.source.position(n)
         end = Token("$END", "", n, line, column, line, column, n)
         inserted: list[str] = []
         for _ in range(200):
+            trial = ip.copy(deepcopy_values=False)
             try:
-                tree: Tree[Token] = ip.feed_eof()
+                tree = trial.feed_eof()
                 break
             except UnexpectedToken as e:
                 expected = set(e.expected) if e.expected else set()
-                closer = next(
-                    (c for c, t in _closer_terminals().items() if t in expected), None
-                )
-                if closer is None:
-                    self._report(
-                        "E007", f"unexpected end of file: expected {_expected(expected)}",
-                        self._token_span(end),
-                    )
-                    return None
+            # a failed feed may have reduced the trial's stack: try closers on fresh copies
+            for closer, term in _closer_terminals().items():
+                candidate = ip.copy(deepcopy_values=False)
+                try:
+                    candidate.feed_token(Token.new_borrow_pos(term, closer, end))
+                except UnexpectedToken:
+                    continue
+                ip = candidate
                 inserted.append(closer)
-                ip.feed_token(Token.new_borrow_pos(_closer_terminals()[closer], closer, end))
+                break
+            else:
+                self._report(
+                    "E007", f"unexpected end of file: expected {_expected(expected)}",
+                    self._token_span(end),
+                )
+                return None
         else:
             return None
         if inserted:
@@ -208,15 +237,17 @@ class _Driver:
 def parse(source: SourceFile) -> ParseResult:
     """Parse one file. Returns the module (None when nothing usable was recovered)."""
     driver = _Driver(source)
-    tree = driver.run()
-    diags = list(driver.diagnostics)
+    building(AstBuilder(source))
     module: ast.Module | None = None
-    if tree is not None:
-        try:
-            module = AstBuilder(source).build(tree)
-        except NestingTooDeep as e:
-            diags.append(Diagnostic(
-                "E008", f"nesting deeper than {e.limit} levels", e.span,
-                "split the expression with `let` or an external operation",
-            ))
-    return ParseResult(module, tuple(diags))
+    try:
+        result = driver.run()
+        if isinstance(result, ast.Module):
+            module = result
+    except NestingTooDeep as e:
+        driver.diagnostics.append(Diagnostic(
+            "E008", f"nesting deeper than {e.limit} levels", e.span,
+            "split the expression with `let` or an external operation",
+        ))
+    finally:
+        building(None)  # type: ignore[arg-type]
+    return ParseResult(module, tuple(driver.diagnostics))

@@ -25,7 +25,10 @@ def expr_text(e: ast.Expr, parent: int = 0) -> str:
         case ast.Name():
             return e.name
         case ast.FieldAccess():
-            return f"{expr_text(e.value, 9)}.{e.field}"
+            inner = expr_text(e.value, 9)
+            if isinstance(e.value, ast.Literal) and not isinstance(e.value.value, bool):
+                inner = f"({inner})"  # `1.x` would lex as the number `1.`
+            return f"{inner}.{e.field}"
         case ast.Index():
             return f"{expr_text(e.value, 9)}[{expr_text(e.index)}]"
         case ast.Call():

@@ -2,7 +2,7 @@
 
 from __future__ import annotations
 
-from dataclasses import dataclass
+from dataclasses import dataclass, field
 
 from rssm_dsl.diagnostics import DiagnosticBag
 from rssm_dsl.semantics.model import System
@@ -15,3 +15,5 @@ class CheckContext:
     system: System
     decls: dict[str, ast.SubsystemDecl]     # subsystem id -> its declaration
     written: dict[str, set[str]]            # subsystem id -> outputs/memory written
+    # subsystem id -> behaviours whose switch conditions have errors (not checked again)
+    unchecked: dict[str, set[str]] = field(default_factory=dict)

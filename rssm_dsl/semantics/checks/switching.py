@@ -166,5 +166,6 @@ def _check_reachability(ctx: CheckContext, s: Subsystem) -> None:
 def check_switching(ctx: CheckContext) -> None:
     for s in ctx.system.subsystems():
         for b in s.behaviours:
-            _check_behaviour(ctx, s, b)
+            if b.name not in ctx.unchecked.get(s.id, set()):
+                _check_behaviour(ctx, s, b)
         _check_reachability(ctx, s)

@@ -69,8 +69,8 @@ def names_read(decl: ast.SubsystemDecl) -> set[str]:
 def check_usage(ctx: CheckContext) -> None:
     for s in ctx.system.subsystems():
         decl = ctx.decls.get(s.id)
-        if decl is None:
-            continue
+        if decl is None or not s.behaviours:
+            continue  # no behaviours: E609 says it all
         read = names_read(decl)
         written = ctx.written.get(s.id, set())
         for b in s.inputs:

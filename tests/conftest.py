@@ -1,0 +1,29 @@
+"""Shared fixtures. `--update-goldens` rewrites golden files (refused in CI)."""
+
+from __future__ import annotations
+
+import os
+from pathlib import Path
+
+import pytest
+
+ROOT = Path(__file__).resolve().parent.parent
+EXAMPLES = ROOT / "examples"
+
+
+def pytest_addoption(parser: pytest.Parser) -> None:
+    parser.addoption("--update-goldens", action="store_true", default=False,
+                     help="rewrite golden files from the current output (never in CI)")
+
+
+@pytest.fixture
+def update_goldens(request: pytest.FixtureRequest) -> bool:
+    flag = bool(request.config.getoption("--update-goldens"))
+    if flag and os.environ.get("CI"):
+        pytest.fail("--update-goldens is not allowed in CI")
+    return flag
+
+
+def example_specs() -> list[Path]:
+    """Every example system (examples/diagnostics/ holds specs with expected errors)."""
+    return sorted(p for p in EXAMPLES.rglob("*.rssm") if "diagnostics" not in p.parts)
