@@ -96,11 +96,12 @@ CODES: tuple[Code, ...] = (
     Code("E806", "replay-diverged", _E, "a step of a replayed counterexample cannot be fired"),
     Code("E807", "unsafe-firing", _E, "a firing would put a second token into a place"),
     # render (rssmc render)
-    Code("W850", "graphviz-missing", _W, "Graphviz `dot` is not installed: no SVG figures were drawn"),
+    Code("W850", "graphviz-missing", _W, "Graphviz `dot` is not installed: no SVG figures drawn"),
     Code("E851", "graphviz-failed", _E, "Graphviz `dot` failed to draw a page"),
-    Code("E852", "trace-unreadable", _E, "a trace or counterexample file that cannot be read as one"),
-    Code("E853", "trace-unknown-transition", _E, "a trace fires a transition the net does not have"),
+    Code("E852", "trace-unreadable", _E, "a trace or counterexample file that cannot be read"),
+    Code("E853", "trace-unknown-transition", _E, "a trace fires a transition the net lacks"),
     Code("E854", "trace-not-enabled", _E, "a trace fires a transition that is not enabled"),
+    Code("W855", "trace-truncated", _W, "a trace longer than the explorer plays (--max-steps)"),
     # internal
     Code("E900", "internal-error", _E, "the compiler failed: please report it"),
 )

@@ -28,6 +28,55 @@ class _Node:
     span: Span
 
 
+@dataclass(frozen=True, slots=True)
+class _Prefixed:
+    """An operand with prefix operators (`-`, `not`), resolved by the enclosing chain."""
+
+    prefixes: tuple[Token, ...]
+    operand: Any
+
+
+@dataclass(frozen=True, slots=True)
+class _Operand:
+    expr: Any
+
+
+# binding power of binary operators; `not` takes comparisons and tighter, `-` only an operand
+_BINARY = {"or": 1, "and": 2, "==": 4, "!=": 4, "<": 4, "<=": 4, ">": 4, ">=": 4,
+           "+": 5, "-": 5, "*": 6, "/": 6, "%": 6}
+_PREFIX = {"not": 4, "-": 7}
+
+
+class _Climber:
+    """Precedence climbing over a chain `prefix* operand (op prefix* operand)*`."""
+
+    def __init__(self, builder: AstBuilder, stream: list[Any]) -> None:
+        self.b = builder
+        self.stream = stream
+        self.i = 0
+
+    def parse(self, min_prec: int) -> Any:
+        item = self.stream[self.i]
+        self.i += 1
+        if isinstance(item, _Operand):
+            left = item.expr
+        else:
+            op = str(item)
+            operand = self.parse(_PREFIX[op])
+            span = self.b._tok(item).to(operand.span)
+            left = self.b._deep(ast.Unary(span, op, operand), [operand], span)
+        while self.i < len(self.stream):
+            tok = self.stream[self.i]
+            prec = _BINARY[str(tok)]
+            if prec < min_prec:
+                break
+            self.i += 1
+            right = self.parse(prec + 1)
+            span = left.span.to(right.span)
+            left = self.b._deep(ast.Binary(span, str(tok), left, right), [left, right], span)
+        return left
+
+
 class NestingTooDeep(Exception):
     def __init__(self, span: Span, limit: int) -> None:
         super().__init__(f"nesting deeper than {limit}")
@@ -60,16 +109,22 @@ class AstBuilder:
         return Span(self.source.path, tok.line, tok.column, tok.end_line or tok.line,
                     tok.end_column or tok.column, tok.start_pos, tok.end_pos or tok.start_pos)
 
+    def _span_of(self, c: Any) -> Span | None:
+        if isinstance(c, Token):
+            return self._tok(c)
+        if isinstance(c, Span):
+            return c
+        if isinstance(c, tuple):  # what a rule returns as several values: span them all
+            spans = [s for s in map(self._span_of, c) if s is not None]
+            return spans[0].to(spans[-1]) if spans else None
+        span = getattr(c, "span", None)
+        return span if isinstance(span, Span) else None
+
     def children_span(self, children: list[Any]) -> Span:
         first: Span | None = None
         last: Span | None = None
         for c in children:
-            if isinstance(c, Token):
-                sp: Span | None = self._tok(c)
-            elif isinstance(c, tuple) and c and isinstance(c[-1], Span):
-                sp = c[-1]
-            else:
-                sp = getattr(c, "span", None)
+            sp = self._span_of(c)
             if sp is None:
                 continue
             if first is None:
@@ -93,14 +148,14 @@ class AstBuilder:
         return ast.Module(self._span(t), self.source.path, imports, decls)
 
     def r_import_decl(self, t: _Node, k: list[Any]) -> ast.Import:
-        path, quoted = k[0]
+        path, quoted, _ = k[0]
         return ast.Import(self._span(t), path, quoted)
 
-    def r_dotted_path(self, t: _Node, k: list[Any]) -> tuple[str, bool]:
-        return ".".join(str(x) for x in k), False
+    def r_dotted_path(self, t: _Node, k: list[Any]) -> tuple[str, bool, Span]:
+        return ".".join(str(x) for x in k), False, self._span(t)
 
-    def r_string_path(self, t: _Node, k: list[Any]) -> tuple[str, bool]:
-        return _unquote(str(k[0])), True
+    def r_string_path(self, t: _Node, k: list[Any]) -> tuple[str, bool, Span]:
+        return _unquote(str(k[0])), True, self._span(t)
 
     def r_record_decl(self, t: _Node, k: list[Any]) -> ast.RecordDecl:
         return ast.RecordDecl(self._span(t), str(k[0]), self._tok(k[0]), tuple(k[1:]))
@@ -311,44 +366,25 @@ class AstBuilder:
     def r_if_expr(self, t: _Node, k: list[Any]) -> ast.Expr:
         return self._expr(ast.IfExpr(self._span(t), k[0], k[1], k[2]), k)
 
-    def _fold(self, op: str, k: list[Any]) -> ast.Expr:
-        node: ast.Expr = k[0]
-        for right in k[1:]:
-            node = self._expr(ast.Binary(node.span.to(right.span), op, node, right), [node, right])
-        return node
+    def r_chain(self, t: _Node, k: list[Any]) -> ast.Expr:
+        if len(k) == 1 and not isinstance(k[0], _Prefixed):
+            return k[0]  # type: ignore[no-any-return]
+        stream: list[Any] = []
+        for i, item in enumerate(k):
+            if i % 2:
+                stream.append(item)  # a binary operator token
+            elif isinstance(item, _Prefixed):
+                if len(item.prefixes) > MAX_DEPTH:
+                    raise NestingTooDeep(self._tok(item.prefixes[0]), MAX_DEPTH)
+                stream.extend(item.prefixes)
+                stream.append(_Operand(item.operand))
+            else:
+                stream.append(_Operand(item))
+        climber = _Climber(self, stream)
+        return climber.parse(0)
 
-    def r_or_expr(self, t: _Node, k: list[Any]) -> ast.Expr:
-        return self._fold("or", k)
-
-    def r_and_expr(self, t: _Node, k: list[Any]) -> ast.Expr:
-        return self._fold("and", k)
-
-    def r_not_op(self, t: _Node, k: list[Any]) -> ast.Expr:
-        return self._expr(ast.Unary(self._span(t), "not", k[0]), k)
-
-    def _chain(self, k: list[Any]) -> ast.Expr:
-        node: ast.Expr = k[0]
-        for i in range(1, len(k), 2):
-            right = k[i + 1]
-            node = self._expr(
-                ast.Binary(node.span.to(right.span), k[i], node, right), [node, right]
-            )
-        return node
-
-    def r_comparison(self, t: _Node, k: list[Any]) -> ast.Expr:
-        return self._chain(k)
-
-    r_sum = r_comparison
-    r_product = r_comparison
-
-    def r_comp_op(self, t: _Node, k: list[Any]) -> str:
-        return str(k[0])
-
-    r_add_op = r_comp_op
-    r_mul_op = r_comp_op
-
-    def r_neg(self, t: _Node, k: list[Any]) -> ast.Expr:
-        return self._expr(ast.Unary(self._span(t), "-", k[0]), k)
+    def r_prefixed(self, t: _Node, k: list[Any]) -> _Prefixed:
+        return _Prefixed(tuple(k[:-1]), k[-1])
 
     def r_field(self, t: _Node, k: list[Any]) -> ast.Expr:
         return self._expr(ast.FieldAccess(self._span(t), k[0], str(k[1])), k)
