@@ -3,4 +3,5 @@ Add a command by adding its module name (one line)."""
 
 COMMANDS: tuple[str, ...] = (
     "compile",
+    "render",
 )
