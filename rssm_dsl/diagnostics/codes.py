@@ -60,6 +60,7 @@ CODES: tuple[Code, ...] = (
     Code("E306", "ambiguous-peer-buffer", _E, "several buffers of the peer could match"),
     Code("E307", "missing-peer", _E, "a subsystem buffer must name its peer"),
     Code("E308", "device-kind-mismatch", _E, "a device instance of the wrong kind"),
+    Code("E309", "wrong-direction-word", _E, "an input names its peer with `to` or an output with `from`"),
     # canonical decomposition
     Code("E401", "write-outside-target", _E, "a partial function writes outside its own target"),
     Code("E402", "write-to-input", _E, "an input buffer is written"),
@@ -102,6 +103,9 @@ CODES: tuple[Code, ...] = (
     Code("E853", "trace-unknown-transition", _E, "a trace fires a transition the net lacks"),
     Code("E854", "trace-not-enabled", _E, "a trace fires a transition that is not enabled"),
     Code("W855", "trace-truncated", _W, "a trace longer than the explorer plays (--max-steps)"),
+    # ROS 2 packages (rssmc ros2)
+    Code("E860", "not-a-ros-name", _E, "a name of the specification cannot become a ROS 2 or Python name"),
+    Code("W861", "module-not-shipped", _W, "a binding's module is not shipped in the ROS 2 workspace"),
     # internal
     Code("E900", "internal-error", _E, "the compiler failed: please report it"),
 )

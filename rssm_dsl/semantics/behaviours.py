@@ -10,8 +10,16 @@ from functools import cache
 from rssm_dsl.diagnostics import DiagnosticBag, Related
 from rssm_dsl.semantics.declarations import Globals
 from rssm_dsl.semantics.model import (
-    ArrLeaf, ArrPar, ArrSeq, Arrangement, Behaviour, Buffer, Condition, DataCase,
-    PartialFunction, Switch,
+    Arrangement,
+    ArrLeaf,
+    ArrPar,
+    ArrSeq,
+    Behaviour,
+    Buffer,
+    Condition,
+    DataCase,
+    PartialFunction,
+    Switch,
 )
 from rssm_dsl.semantics.structure import Shell
 from rssm_dsl.semantics.typecheck import ExprChecker, Scope, Symbol, did_you_mean
@@ -92,7 +100,8 @@ class BehaviourPass:
             syms[d.name] = Symbol(kind, None, d.span)
         self.symbols = syms
         self.all_conditions: dict[str, str] = {}  # condition name -> behaviour
-        # behaviours with a switch condition already reported: the switching check skips them
+        # behaviours with a switch already reported (unknown behaviour, bad condition): the
+        # switching check skips them, and the reachability of this subsystem's behaviours
         self.unchecked: set[str] = set()
 
     def scope(self, new_allowed: bool = False) -> Scope:
@@ -161,7 +170,7 @@ class BehaviourPass:
                            "inputs are filled by receiving; update an output buffer or memory")
         elif any(v.name == u.target for v in self.shell.memory):
             self.bag.error("E404", f"'{u.target}' is a memory variable: memory has one partial "
-                           "function", u.target_span, f"write it inside `update memory {{ ... }}`")
+                           "function", u.target_span, "write it inside `update memory { ... }`")
         else:
             outs = ", ".join(b.name for b in self.outputs) or "none"
             self.bag.error("E404", f"'{u.target}' is not an output buffer of {self.shell.id}",
@@ -386,29 +395,35 @@ class BehaviourPass:
                                          for i in decl.initial[:1] if len(decl.initial) > 1))
         for ini in decl.initial[:1]:
             if ini.behaviour not in behaviours:
-                self.bag.error("E102", f"no behaviour '{ini.behaviour}' in {self.shell.id}",
-                               ini.behaviour_span)
+                self._no_behaviour(ini.behaviour, ini.behaviour_span, behaviours)
                 continue
             out.append(Switch(0, None, ini.behaviour, None, False, ini.span))
         for i, sw in enumerate(decl.switches, start=1):
             ok = True
             if sw.source not in behaviours:
-                self.bag.error("E102", f"no behaviour '{sw.source}' in {self.shell.id}",
-                               sw.source_span)
+                self._no_behaviour(sw.source, sw.source_span, behaviours)
                 ok = False
             if sw.target != "end" and sw.target not in behaviours:
-                self.bag.error("E102", f"no behaviour '{sw.target}' in {self.shell.id}",
-                               sw.target_span, "switch to `end` to finish the subsystem")
+                self._no_behaviour(sw.target, sw.target_span, behaviours,
+                                   "switch to `end` to finish the subsystem")
                 ok = False
             if sw.condition is not None and sw.source in behaviours:
                 errors = sum(d.is_error for d in self.bag.items)
                 self._switch_condition(sw.condition, behaviours[sw.source])
                 if sum(d.is_error for d in self.bag.items) > errors:
-                    self.unchecked.add(sw.source)
+                    ok = False
+            if not ok and sw.source in behaviours:
+                self.unchecked.add(sw.source)
             if ok:
                 out.append(Switch(i, sw.source, None if sw.target == "end" else sw.target,
                                   sw.condition, sw.condition is None, sw.span))
         return tuple(out)
+
+    def _no_behaviour(self, name: str, span: Span, behaviours: dict[str, Behaviour],
+                      hint: str | None = None) -> None:
+        guess = did_you_mean(name, behaviours)
+        self.bag.error("E102", f"no behaviour '{name}' in {self.shell.id}", span,
+                       f"did you mean '{guess}'?" if guess else hint)
 
     def _switch_condition(self, e: ast.Expr, source: Behaviour) -> None:
         scope = self.scope()

@@ -16,6 +16,7 @@ from dataclasses import replace
 from rssm_dsl.diagnostics import DiagnosticBag, Related
 from rssm_dsl.semantics.model import Buffer, Channel
 from rssm_dsl.semantics.structure import AgentShell, Shell
+from rssm_dsl.semantics.typecheck import did_you_mean
 from rssm_dsl.syntax import ast
 
 _ALLOWED = {frozenset("ce"), frozenset("cr"), frozenset("eE"), frozenset("rR")}
@@ -55,6 +56,12 @@ class ChannelPass:
                                f"(write `{agent}.c`)", peer.span)
                 return None
         letter = parts[0]
+        if letter not in _LETTERS and parts[1:2] == ["c"]:
+            guess = did_you_mean(letter, self.agents)
+            bag.error("E303", f"'{peer}': there is no agent '{letter}'", peer.span,
+                      f"did you mean '{guess}.c'?" if guess else
+                      "agents: " + ", ".join(sorted(self.agents)))
+            return None
         if letter not in _LETTERS:
             bag.error("E303", f"'{peer}' is not a subsystem", peer.span,
                            "name a peer as c, e.NAME, r.NAME, E.NAME, R.NAME or AGENT.c")
@@ -70,9 +77,11 @@ class ChannelPass:
         if target is None and target_id in self.broken:
             return None  # its declaration is already reported
         if target is None:
+            prefix = target_id.rsplit(".", 1)[0] + "."
+            guess = did_you_mean(target_id, [i for i in self.by_id if i.startswith(prefix)])
             bag.error("E303", f"{target_id} does not exist", peer.span,
-                           f"declare it in agent '{agent}'" if agent in self.agents
-                           else f"there is no agent '{agent}'")
+                      f"did you mean {guess.removeprefix(f'{owner.agent}.')}?" if guess
+                      else f"declare it in agent '{agent}'")
             return None
         if len(rest) > 1:
             bag.error("E303", f"'{peer}' has too many parts", peer.span)

@@ -8,7 +8,12 @@ from dataclasses import dataclass, field
 from rssm_dsl.diagnostics import DiagnosticBag, Related
 from rssm_dsl.semantics.model import Const, Extern
 from rssm_dsl.semantics.typecheck import (
-    BUILTIN_CONSTS, BUILTIN_FUNCTIONS, ExprChecker, Scope, Symbol, did_you_mean,
+    BUILTIN_CONSTS,
+    BUILTIN_FUNCTIONS,
+    ExprChecker,
+    Scope,
+    Symbol,
+    did_you_mean,
 )
 from rssm_dsl.semantics.types import SCALARS, ArrayT, RecordT, Type, assignable
 from rssm_dsl.source import Span

@@ -91,6 +91,8 @@ class StructurePass:
             )
         names: dict[tuple[bool, str], Span] = {}
         for s in sorted(a.subsystems, key=lambda s: s.kind is not ast.SubsystemKind.CONTROL):
+            if s.kind is ast.SubsystemKind.CONTROL and s is not controls[0]:
+                continue  # E301 above; the extra control subsystems are not analysed
             key = (False, s.name)
             if key in names:
                 self.bag.error("E101", f"subsystem '{s.name}' is declared twice in agent "
@@ -188,6 +190,12 @@ class StructurePass:
                       decl=s)
         self._fill(shell, s.params, s.memory, s.buffers)
         for b in s.buffers:
+            want = "to" if b.direction is ast.Direction.OUTPUT else "from"
+            if b.arrow is not None and b.arrow[0] != want:
+                self.bag.error("E309", f"{b.direction.value} '{b.name}' names its peer with "
+                               f"`{b.arrow[0]}`", b.arrow[1],
+                               f"an {b.direction.value} {'sends to' if want == 'to' else 'receives from'}"
+                               f" its peer: write `{want}`, or change the direction")
             if b.peer is None:
                 self.bag.error("E307", f"buffer '{b.name}' of {shell.id} does not say which "
                                "subsystem it talks to", b.name_span,

@@ -9,7 +9,15 @@ from dataclasses import dataclass, field
 from rssm_dsl.diagnostics import DiagnosticBag
 from rssm_dsl.semantics.model import Extern
 from rssm_dsl.semantics.types import (
-    BOOL, FLOAT, INT, ArrayT, RecordT, Type, assignable, is_numeric, is_numeric_array,
+    BOOL,
+    FLOAT,
+    INT,
+    ArrayT,
+    RecordT,
+    Type,
+    assignable,
+    is_numeric,
+    is_numeric_array,
 )
 from rssm_dsl.source import Span
 from rssm_dsl.syntax import ast
@@ -214,14 +222,23 @@ class ExprChecker:
                 self.check(v, scope)
             return None
         given = {n for n, _ in e.fields}
+        missing = [n for n, _ in expected.fields if n not in given]
+        seen: set[str] = set()
         for n, v in e.fields:
             ft = expected.field(n)
+            if n in seen:
+                self.bag.error("E207", f"field '{n}' is given twice", v.span)
+            seen.add(n)
             if ft is None:
-                self.bag.error("E207", f"record {expected.name} has no field '{n}'", v.span)
+                guess = did_you_mean(n, missing)
+                if guess is not None:
+                    missing.remove(guess)  # a misspelling: one report, not two
+                self.bag.error("E207", f"record {expected.name} has no field '{n}'", v.span,
+                               f"did you mean '{guess}'?" if guess else
+                               "its fields are: " + ", ".join(f for f, _ in expected.fields))
                 self.check(v, scope)
                 continue
             self.expect(v, scope, ft, f"field '{n}'")
-        missing = [n for n, _ in expected.fields if n not in given]
         if missing:
             self.bag.error("E207", f"record {expected.name} literal misses " + ", ".join(missing),
                            e.span)

@@ -230,6 +230,7 @@ class BufferDecl:
     mode: Mode | None
     mode_span: Span | None
     init: Expr | None
+    arrow: tuple[str, Span] | None = None  # the `from` / `to` word as written
 
 
 @dataclass(frozen=True, slots=True)

@@ -239,8 +239,9 @@ class AstBuilder:
         unit = str(k[1])
         return ast.Frequency(self._span(t), float(value) * (1000.0 if unit == "kHz" else 1.0))
 
-    def r_freq_unit(self, t: _Node, k: list[Any]) -> str:
-        return str(k[0])
+    def r_freq_unit(self, t: _Node, k: list[Any]) -> Token:
+        unit: Token = k[0]  # the token (a str) keeps its position for the frequency's span
+        return unit
 
     def r_memory_decl(self, t: _Node, k: list[Any]) -> ast.MemoryDecl:
         return ast.MemoryDecl(self._span(t), str(k[0]), self._tok(k[0]), k[1], k[2])
@@ -264,7 +265,7 @@ class AstBuilder:
         direction, name, type_, arrow, peer, mode, init = k
         return ast.BufferDecl(
             self._span(t), direction, str(name), self._tok(name), type_,
-            peer, mode[0] if mode else None, mode[1] if mode else None, init,
+            peer, mode[0] if mode else None, mode[1] if mode else None, init, arrow,
         )
 
     # ------------------------------------------------------------- behaviours
@@ -372,6 +373,8 @@ class AstBuilder:
         stream: list[Any] = []
         for i, item in enumerate(k):
             if i % 2:
+                if not (isinstance(item, Token) and str(item) in _BINARY):
+                    return k[0]  # type: ignore[no-any-return]  # debris of error recovery
                 stream.append(item)  # a binary operator token
             elif isinstance(item, _Prefixed):
                 if len(item.prefixes) > MAX_DEPTH:
@@ -384,7 +387,9 @@ class AstBuilder:
         return climber.parse(0)
 
     def r_prefixed(self, t: _Node, k: list[Any]) -> _Prefixed:
-        return _Prefixed(tuple(k[:-1]), k[-1])
+        # only operator tokens precede the operand (error recovery may leave other debris)
+        prefixes = tuple(x for x in k[:-1] if isinstance(x, Token) and str(x) in _PREFIX)
+        return _Prefixed(prefixes, k[-1])
 
     def r_field(self, t: _Node, k: list[Any]) -> ast.Expr:
         return self._expr(ast.FieldAccess(self._span(t), k[0], str(k[1])), k)

@@ -171,7 +171,7 @@ class _Driver:
             try:
                 trial.feed_token(Token(term, text))
                 trial.feed_token(tok)
-            except UnexpectedToken:
+            except Exception:  # noqa: BLE001 - any failure of a trial only rejects the repair
                 continue
             if text in _CLOSERS:
                 message, hint = f"missing '{text}' before {_describe(tok)}", f"insert '{text}'"
@@ -243,6 +243,11 @@ def parse(source: SourceFile) -> ParseResult:
         result = driver.run()
         if isinstance(result, ast.Module):
             module = result
+    except (UnexpectedToken, UnexpectedCharacters, ValueError, KeyError, TypeError):
+        # recovery could not rebuild a tree from what was left: the errors stand
+        if not driver.diagnostics:
+            driver.diagnostics.append(Diagnostic(
+                "E005", "the file could not be parsed", source.span(0, 0)))
     except NestingTooDeep as e:
         driver.diagnostics.append(Diagnostic(
             "E008", f"nesting deeper than {e.limit} levels", e.span,

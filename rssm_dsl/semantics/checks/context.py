@@ -15,5 +15,6 @@ class CheckContext:
     system: System
     decls: dict[str, ast.SubsystemDecl]     # subsystem id -> its declaration
     written: dict[str, set[str]]            # subsystem id -> outputs/memory written
-    # subsystem id -> behaviours whose switch conditions have errors (not checked again)
+    # subsystem id -> behaviours with a switch that has errors: their switches are not
+    # checked again, nor the reachability of the subsystem's behaviours
     unchecked: dict[str, set[str]] = field(default_factory=dict)

@@ -157,10 +157,10 @@ def _check_reachability(ctx: CheckContext, s: Subsystem) -> None:
         stack += [sw.target for sw in s.switches if sw.source == b and sw.target is not None]
     if not entry:
         return
-    for b in s.behaviours:
-        if b.name not in seen:
-            ctx.bag.warn("W605", f"behaviour '{b.name}' of {s.id} is never entered", b.span,
-                         "no switch chain from the initial behaviour leads to it")
+    for behaviour in s.behaviours:
+        if behaviour.name not in seen:
+            ctx.bag.warn("W605", f"behaviour '{behaviour.name}' of {s.id} is never entered",
+                         behaviour.span, "no switch chain from the initial behaviour leads to it")
 
 
 def check_switching(ctx: CheckContext) -> None:
@@ -168,4 +168,5 @@ def check_switching(ctx: CheckContext) -> None:
         for b in s.behaviours:
             if b.name not in ctx.unchecked.get(s.id, set()):
                 _check_behaviour(ctx, s, b)
-        _check_reachability(ctx, s)
+        if not ctx.unchecked.get(s.id):  # a switch with errors: reachability is unknown
+            _check_reachability(ctx, s)

@@ -8,61 +8,65 @@ from rssm_dsl.semantics.checks.context import CheckContext
 from rssm_dsl.syntax import ast
 
 
-def _exprs(decl: ast.SubsystemDecl) -> Iterator[ast.Expr]:
+def _exprs(decl: ast.SubsystemDecl) -> Iterator[tuple[ast.Expr, str | None]]:
+    """Every expression of the subsystem, with the variable whose reads in it do not count:
+    `count := count + 1` does not make `count` used."""
     for m in decl.memory:
         if m.init is not None:
-            yield m.init
+            yield m.init, None
     for b in decl.buffers:
         if b.init is not None:
-            yield b.init
+            yield b.init, None
     for p in decl.params:
-        yield p.value
+        yield p.value, None
     for bd in decl.behaviours:
         for c in bd.conditions:
-            yield c.expr
+            yield c.expr, None
         for u in bd.updates:
             for case in u.cases:
                 if case.condition is not None:
-                    yield case.condition
+                    yield case.condition, None
                 for st in case.body:
                     if isinstance(st, ast.Let):
-                        yield st.value
+                        yield st.value, None
                     elif isinstance(st, ast.Assign):
-                        yield st.value
                         target = st.target
                         while isinstance(target, ast.FieldAccess | ast.Index):
                             if isinstance(target, ast.Index):
-                                yield target.index
+                                yield target.index, None
                             target = target.value
+                        yield st.value, target.name if isinstance(target, ast.Name) else None
     for sw in decl.switches:
         if sw.condition is not None:
-            yield sw.condition
+            yield sw.condition, None
 
 
 def names_read(decl: ast.SubsystemDecl) -> set[str]:
     out: set[str] = set()
-    stack = list(_exprs(decl))
-    while stack:
-        e = stack.pop()
-        match e:
-            case ast.Name():
-                out.add(e.name)
-            case ast.FieldAccess():
-                stack.append(e.value)
-            case ast.Unary():
-                stack.append(e.operand)
-            case ast.Index():
-                stack += [e.value, e.index]
-            case ast.Binary():
-                stack += [e.left, e.right]
-            case ast.IfExpr():
-                stack += [e.condition, e.then, e.otherwise]
-            case ast.Call():
-                stack += list(e.args)
-            case ast.ArrayLit():
-                stack += list(e.items)
-            case ast.RecordLit():
-                stack += [v for _, v in e.fields]
+    for root, own in _exprs(decl):
+        stack = [root]
+        while stack:
+            e = stack.pop()
+            match e:
+                case ast.Name():
+                    if e.name != own:
+                        out.add(e.name)
+                case ast.FieldAccess():
+                    stack.append(e.value)
+                case ast.Unary():
+                    stack.append(e.operand)
+                case ast.Index():
+                    stack += [e.value, e.index]
+                case ast.Binary():
+                    stack += [e.left, e.right]
+                case ast.IfExpr():
+                    stack += [e.condition, e.then, e.otherwise]
+                case ast.Call():
+                    stack += list(e.args)
+                case ast.ArrayLit():
+                    stack += list(e.items)
+                case ast.RecordLit():
+                    stack += [v for _, v in e.fields]
     return out
 
 
@@ -83,7 +87,9 @@ def check_usage(ctx: CheckContext) -> None:
                              f"add `update {b.name} {{ ... }}` to a behaviour")
         for v in s.memory:
             if v.name not in read:
-                ctx.bag.warn("W702", f"memory '{v.name}' of {s.id} is never read", v.span)
+                ctx.bag.warn("W702", f"memory '{v.name}' of {s.id} is never read", v.span,
+                             "nothing depends on it (reading it only to update it does not "
+                             "count): remove it, or use it")
         for v in s.params:
             if v.name not in read:
                 ctx.bag.warn("W703", f"param '{v.name}' of {s.id} is never read", v.span)
