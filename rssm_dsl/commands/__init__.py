@@ -3,5 +3,6 @@ Add a command by adding its module name (one line)."""
 
 COMMANDS: tuple[str, ...] = (
     "compile",
+    "simulate",
     "render",
 )

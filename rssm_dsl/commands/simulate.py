@@ -1,0 +1,247 @@
+"""`rssmc simulate`: run the system's HPN with its operations (docs/simulate.md)."""
+
+from __future__ import annotations
+
+import json
+import sys
+from fnmatch import fnmatchcase
+from pathlib import Path
+from typing import TYPE_CHECKING, Annotated, Any
+
+import typer
+
+from rssm_dsl.cli import EXIT_ERRORS, EXIT_OK, EXIT_USAGE, Format, guarded, report
+
+if TYPE_CHECKING:
+    from rssm_dsl.interp.summary import Snapshot
+
+EXIT_INTERRUPTED = 130
+
+FileArg = Annotated[Path, typer.Argument(help="The .rssm file of the system.", show_default=False)]
+
+
+def _pairs(values: list[str], what: str, sep: str) -> dict[str, str]:
+    out: dict[str, str] = {}
+    for v in values:
+        key, ok, value = v.partition(sep)
+        if not ok or not key.strip() or not value.strip():
+            raise typer.BadParameter(f"'{v}' is not {what}")
+        out[key.strip()] = value.strip()
+    return out
+
+
+def _device_options(values: list[str]) -> dict[str, dict[str, str]]:
+    out: dict[str, dict[str, str]] = {}
+    for v in values:
+        target, ok, setting = v.partition(":")
+        key, ok2, value = setting.partition("=")
+        if not (ok and ok2 and target and key):
+            raise typer.BadParameter(f"'{v}' is not ID:KEY=VALUE (e.g. a1.R.cam:file=cam.csv)")
+        out.setdefault(target.strip(), {})[key.strip()] = value
+    return out
+
+
+class _Live:
+    """Redraws the summary in place on a terminal (stderr)."""
+
+    def __init__(self) -> None:
+        self.lines = 0
+
+    def __call__(self, snap: Snapshot) -> None:
+        from rssm_dsl.interp.summary import render
+
+        text = render(snap)
+        up = f"\x1b[{self.lines}F\x1b[J" if self.lines else ""
+        sys.stderr.write(up + text + "\n")
+        sys.stderr.flush()
+        self.lines = text.count("\n") + 1
+
+    def clear(self) -> None:
+        if self.lines:
+            sys.stderr.write(f"\x1b[{self.lines}F\x1b[J")
+            sys.stderr.flush()
+            self.lines = 0
+
+
+def simulate(
+    file: FileArg,
+    steps: Annotated[int | None, typer.Option("--steps", min=0,
+                     help="Stop after this many transition firings.")] = None,
+    until: Annotated[float | None, typer.Option("--until", min=0.0,
+                     help="Stop at this time (seconds; simulated, or wall-clock in "
+                          "concurrent mode).")] = None,
+    mode: Annotated[str, typer.Option(
+        "--mode", help="deterministic (seeded, simulated time) or concurrent (operations in "
+                       "worker threads, wall-clock pacing).")] = "deterministic",
+    seed: Annotated[int, typer.Option(help="Seed of the choice among enabled transitions.")] = 0,
+    trace: Annotated[Path | None, typer.Option("--trace",
+                     help="Write the trace (JSON lines) to this file.")] = None,
+    replay: Annotated[Path | None, typer.Option(
+        "--replay", help="Replay a counterexample of `rssmc verify` (JSON) or a trace, "
+                         "forcing its firings.")] = None,
+    device: Annotated[list[str] | None, typer.Option(
+        "--device", help="Bind a device to a class: ID=module:Class (repeatable; ID may be a "
+                         "pattern such as '*.E.*'), e.g. "
+                         "a1.E.lwr=rssm_stdlib.devices.constant:ConstantDevice.")] = None,
+    device_option: Annotated[list[str] | None, typer.Option(
+        "--device-option", help="An option of a device: ID:KEY=VALUE (repeatable; ID may be "
+                                "a pattern).")] = None,
+    workers: Annotated[int, typer.Option(min=1, help="Worker threads (concurrent mode).")] = 4,
+    all_interleavings: Annotated[bool, typer.Option(
+        "--all-interleavings", help="Deterministic mode: let the seeded choice pick among "
+                                    "every enabled transition, local steps included "
+                                    "(slower; see docs/simulate.md).")] = False,
+    live: Annotated[bool | None, typer.Option(
+        "--live/--no-live", help="Redraw the summary while running (default: on a "
+                                 "terminal).")] = None,
+    format: Annotated[Format, typer.Option("--format", "-f",
+                      help="How to print diagnostics and the result.")] = Format.text,
+    quiet: Annotated[bool, typer.Option("--quiet", "-q",
+                     help="Print only problems.")] = False,
+) -> None:
+    """Execute the system's HPN: tokens move as the paper's scheduler moves them, behaviours
+    switch on their conditions, data flows through the buffers. Prints a summary at the end.
+    Exit 0 when the run stops normally, 1 on errors, a deadlock or a reproduced
+    counterexample, 2 on usage errors, 130 on Ctrl-C."""
+
+    def run() -> int:
+        if mode not in ("deterministic", "concurrent"):
+            typer.echo(f"rssmc: --mode must be deterministic or concurrent, not {mode}", err=True)
+            return EXIT_USAGE
+        try:
+            devices = _pairs(device or [], "ID=module:Class", "=")
+            options = _device_options(device_option or [])
+        except typer.BadParameter as e:
+            typer.echo(f"rssmc: {e.message}", err=True)
+            return EXIT_USAGE
+        return _simulate(file, steps, until, mode, seed, trace, replay, devices, options,
+                         workers, live, format, quiet, not all_interleavings)
+
+    guarded(run)
+
+
+def _simulate(file: Path, steps: int | None, until: float | None, mode: str, seed: int,
+              trace: Path | None, replay: Path | None, devices: dict[str, str],
+              options: dict[str, dict[str, str]], workers: int, live: bool | None,
+              fmt: Format, quiet: bool, eager: bool = True) -> int:
+    from rssm_dsl.diagnostics.render import render_text
+    from rssm_dsl.interp import RunConfig, SimOptions, Simulator, build_runtime
+    from rssm_dsl.interp.errors import SetupError
+    from rssm_dsl.interp.replay import (
+        ReplayFileError,
+        judge,
+        load_counterexample,
+        resolve_steps,
+    )
+    from rssm_dsl.interp.summary import render
+    from rssm_dsl.interp.trace import TraceWriter
+    from rssm_dsl.pipeline import compile_file
+
+    comp = compile_file(file)
+    if not comp.ok or comp.system is None:
+        report(comp, fmt)
+        return EXIT_ERRORS
+    if comp.diagnostics and fmt is Format.text and not quiet:
+        report(comp, fmt)
+    known = {d.id for d in comp.system.devices()}
+    for target in [*devices, *options]:
+        if not any(fnmatchcase(k, target) for k in known):
+            typer.echo(f"rssmc: no device {target} in system {comp.system.name} (devices: "
+                       f"{', '.join(sorted(known)) or 'none'})", err=True)
+            return EXIT_USAGE
+
+    def show(diags: list[Any]) -> None:
+        if not diags:
+            return
+        if fmt is Format.json:
+            return
+        typer.echo(render_text(diags, comp.program.line), err=True)
+
+    config = RunConfig(base_dir=file.resolve().parent, devices=devices, device_options=options,
+                       wall_clock=mode == "concurrent")
+    try:
+        rt = build_runtime(comp, config)
+    except SetupError as e:
+        show(e.diagnostics)
+        if fmt is Format.json:
+            typer.echo(json.dumps({"reason": "setup", "diagnostics":
+                                   [d.to_json() for d in e.diagnostics]}, indent=2))
+        return EXIT_ERRORS
+
+    forced: list[int] | None = None
+    cx = None
+    if replay is not None:
+        try:
+            cx = load_counterexample(replay)
+        except ReplayFileError as e:
+            typer.echo(f"rssmc: --replay: {e}", err=True)
+            rt.close_devices()
+            return EXIT_USAGE
+        forced, bad = resolve_steps(rt.net, cx.sequence(), str(replay))
+        if bad:
+            show(bad)
+            rt.close_devices()
+            return EXIT_ERRORS
+        if mode != "deterministic":
+            typer.echo("rssmc: --replay runs in deterministic mode", err=True)
+            rt.close_devices()
+            return EXIT_USAGE
+
+    tracer = TraceWriter(trace) if trace is not None else None
+    rt.tracer = tracer
+    show_live = (sys.stderr.isatty() if live is None else live) and not quiet \
+        and fmt is Format.text
+    painter = _Live() if show_live else None
+    opts = SimOptions(mode=mode, seed=seed, max_steps=steps, until=until, workers=workers,
+                      forced=forced, record_markings=cx is not None and cx.kind == "progress",
+                      progress=painter, eager=eager,
+                      trace_info={"spec": str(file),
+                                  "replay": str(replay) if replay is not None else None})
+    sim = Simulator(rt, opts)
+    try:
+        result = sim.run()
+    finally:
+        if painter is not None:
+            painter.clear()
+        if tracer is not None:
+            tracer.close()
+
+    verdict = judge(cx, forced or [], result, sim) if cx is not None else None
+    diags = list(result.diagnostics)
+    if verdict is not None:
+        diags = [d for d in verdict.diagnostics if d not in diags] + diags
+    if fmt is Format.json:
+        out: dict[str, Any] = {
+            "reason": result.reason, "message": result.message, "steps": result.steps,
+            "time": result.time, "wall": round(result.wall, 3),
+            "diagnostics": [d.to_json() for d in diags],
+            "marking": result.marking,
+            "summary": result.summary.to_json() if result.summary else None,
+        }
+        if verdict is not None:
+            out["replay"] = {"reproduced": verdict.reproduced, "message": verdict.message,
+                             "forced": result.forced}
+        typer.echo(json.dumps(out, indent=2))
+    else:
+        show(diags)
+        if result.summary is not None and not quiet:
+            typer.echo(render(result.summary, result.wall))
+        if not quiet or not result.ok:
+            typer.echo(f"{file}: {result.message}", err=True)
+        if verdict is not None:
+            extra = (f" ({result.forced} firing(s) forced against the data)"
+                     if result.forced else "")
+            typer.echo(f"replay: {verdict.message}{extra}", err=True)
+        if tracer is not None and not quiet:
+            typer.echo(f"trace: {tracer.count} events written to {trace}", err=True)
+    if result.reason == "interrupted":
+        return EXIT_INTERRUPTED
+    if verdict is not None:
+        if cx is not None and cx.kind in ("deadlock", "unsafe", "progress"):
+            return EXIT_ERRORS if verdict.reproduced else EXIT_USAGE
+        return EXIT_OK if verdict.reproduced else EXIT_ERRORS
+    return EXIT_OK if result.ok else EXIT_ERRORS
+
+
+def register(app: typer.Typer) -> None:
+    app.command("simulate")(simulate)

@@ -1,0 +1,216 @@
+"""The firing rule of every transition compiled to straight-line Python.
+
+For the deterministic mode each transition ``t`` gets a function ``fire_t()`` that removes the
+tokens of its input places, runs its effect, then for each output place puts the token, runs
+the place's operation and updates the count of missing tokens of the transitions reading that
+place, adding those that became enabled to the enabled set (local steps go to the stack of
+local steps instead: while the deterministic loop runs, the enabled set holds only the other
+transitions). Place and transition indices are constants in the code, loops
+over the net structure are unrolled: a firing costs a handful of list stores instead of a walk
+over the incidence lists.
+
+Each transition also gets a *macro step* ``macro_t()``: the transition and then every local
+step it makes possible, in one function (see :meth:`FiringCode._macro`).
+
+A function is compiled the first time it is called (a run uses a fraction of them, and
+compiling Python is the slow part; compiled sources are kept for the next run of the
+process); the number of firings of every macro step is known upfront. The generated source
+contains only integers and fixed identifiers (no text of the specification); operations and
+effects are reached through the namespace the code is executed in.
+"""
+
+from __future__ import annotations
+
+from collections.abc import Callable, Mapping, Sequence
+from types import CodeType
+from typing import Any
+
+from rssm_dsl.interp.engine import TokenGame
+
+Action = Callable[[], None]
+MAX_MACRO = 64                   # firings in one macro step at most
+_CODE: dict[str, CodeType] = {}  # compiled sources, shared by the runs of a process
+MAX_CACHED = 100_000
+
+
+class FiringCode:
+    """Per transition: ``fire[t]`` fires it alone; ``macros[t]`` fires its macro step, which
+    makes ``macro_len[t]`` firings (``macros`` is None when macro steps are off)."""
+
+    def __init__(self, game: TokenGame, ops: Sequence[Action | None],
+                 effects: Sequence[Action | None], guards: Sequence[object | None],
+                 gates: Sequence[object | None], eager: bytearray, local: list[int],
+                 case_groups: Mapping[int, Any], failure: Callable[[int, Exception], None],
+                 unsafe: Callable[[int, int], None], macros: bool) -> None:
+        self.game = game
+        self.ops, self.effects, self.guards, self.gates = ops, effects, guards, gates
+        self.eager = eager
+        self.case_groups = case_groups
+        self.ns: dict[str, Any] = {
+            "tokens": game.tokens, "missing": game.missing, "_add": game.enabled.add,
+            "_discard": game.enabled.discard, "_local": local.append, "_failure": failure,
+            "_unsafe": unsafe,
+        }
+        n = len(game.pre)
+        self.fire: list[Action] = [self._lazy(self.fire_table, t, self._firing)
+                                   for t in range(n)]
+        self.macros: list[Action] | None = None
+        self.macro_len: list[int] = [1] * n
+        self._bodies: list[list[str]] = []
+        if macros:
+            built = [self._macro(t) for t in range(n)]
+            self.macro_len = [count for _, count in built]
+            self._bodies = [body for body, _ in built]
+            self.macros = [self._lazy(self.macro_table, t, self._bodies.__getitem__)
+                           for t in range(n)]
+
+    def fire_table(self) -> list[Action]:
+        return self.fire
+
+    def macro_table(self) -> list[Action]:
+        assert self.macros is not None
+        return self.macros
+
+    # ------------------------------------------------------------------ compiling
+    def _lazy(self, table: Callable[[], list[Action]], t: int,
+              body: Callable[[int], list[str]]) -> Action:
+        """A stand-in that compiles the function of ``t`` when first called, puts it in its
+        place in ``table()`` and runs it."""
+        def first_call() -> None:
+            fn = self._compile(f"f{t}", body(t))
+            table()[t] = fn
+            fn()
+        return first_call
+
+    def _compile(self, name: str, body: list[str]) -> Action:
+        source = f"def {name}():\n" + "\n".join("    " + line for line in body or ["pass"])
+        code = _CODE.get(source)
+        if code is None:
+            if len(_CODE) >= MAX_CACHED:
+                _CODE.clear()
+            code = _CODE[source] = compile(source, f"<rssm {name}>", "exec")
+        # generated from indices only: no text of the specification
+        exec(code, self.ns)
+        fn: Action = self.ns.pop(name)
+        return fn
+
+    # ------------------------------------------------------------------ pieces of code
+    def _consume(self, t: int, body: list[str]) -> None:
+        pre, consumers, eager = self.game.pre, self.game.consumers, self.eager
+        for p in pre[t]:
+            body.append(f"tokens[{p}] = 0")
+            for u in consumers[p]:
+                if eager[u]:                     # local steps are not kept in the enabled set
+                    body.append(f"missing[{u}] += 1")
+                elif len(pre[u]) == 1:
+                    body.append(f"_discard({u})")
+                    body.append(f"missing[{u}] = 1")
+                else:
+                    body.append(f"if missing[{u}] == 0:")
+                    body.append(f"    _discard({u})")
+                    body.append(f"missing[{u}] += 1")
+
+    def _effect(self, t: int, body: list[str]) -> None:
+        if self.effects[t] is not None:
+            self.ns[f"e{t}"] = self.effects[t]
+            body.append(f"e{t}()")
+
+    def _arrive(self, src: str, p: int, body: list[str]) -> None:
+        """A token arrives in ``p``: the safeness check and the place's operation."""
+        body.append(f"if tokens[{p}]:")
+        body.append(f"    _unsafe({src}, {p})")
+        if self.ops[p] is not None:
+            self.ns[f"o{p}"] = self.ops[p]
+            body += ["try:", f"    o{p}()", "except Exception as e:", f"    _failure({p}, e)"]
+
+    def _mark(self, p: int, body: list[str]) -> None:
+        """The token of ``p`` is put and the transitions reading ``p`` are updated."""
+        pre, consumers, eager = self.game.pre, self.game.consumers, self.eager
+        body.append(f"tokens[{p}] = 1")
+        for u in consumers[p]:
+            enable = f"_local({u})" if eager[u] else f"_add({u})"
+            if len(pre[u]) == 1:
+                body.append(f"missing[{u}] = 0")
+                body.append(enable)
+            else:
+                body.append(f"m = missing[{u}] - 1")
+                body.append(f"missing[{u}] = m")
+                body.append("if m == 0:")
+                body.append(f"    {enable}")
+
+    def _firing(self, t: int) -> list[str]:
+        body: list[str] = []
+        self._consume(t, body)
+        self._effect(t, body)
+        for p in self.game.post[t]:
+            self._arrive(str(t), p, body)
+            self._mark(p, body)
+        return body
+
+    def _macro(self, t: int) -> tuple[list[str], int]:
+        """The macro step of ``t``.
+
+        From the output places of ``t`` the builder follows local steps symbolically: an
+        unconditional, unpaced local transition whose input places were all marked within the
+        macro fires; the data-availability cases of a partial function (a ``CaseGroup`` at an
+        input place) fire as one step that picks the case from the subsystem's new(x) mask
+        (exactly one case matches: the cases are disjoint and exhaustive). Each transition
+        fires at most once in a macro. The places left marked at the end get their tokens
+        and the usual bookkeeping; the places in between are never written. Every firing,
+        effect and operation happens in the order a step-by-step run with local steps first
+        would make them (the chain commutes with everything outside it), so a macro step is
+        only a faster way to make the same firings. The count is the same on every path."""
+        pre, post, consumers = self.game.pre, self.game.post, self.game.consumers
+        eager, guards, gates = self.eager, self.guards, self.gates
+        body: list[str] = []
+        virtual: dict[int, None] = {}      # marked within the macro, not yet consumed
+
+        def produce(src: str, p: int) -> None:
+            if p in virtual:
+                body.append(f"_unsafe({src}, {p})")
+            self._arrive(src, p, body)
+            virtual[p] = None
+
+        self._consume(t, body)
+        self._effect(t, body)
+        for p in post[t]:
+            produce(str(t), p)
+        count = 1
+        fired = {t}
+        changed = True
+        while changed and count < MAX_MACRO:
+            changed = False
+            for p in list(virtual):
+                if p not in virtual:
+                    continue
+                group = self.case_groups.get(p)
+                if group is not None and all(eager[u] and gates[u] is None and u not in fired
+                                             for u in consumers[p]):
+                    fired.update(consumers[p])
+                    fired.update(row[3] for row in group.table)
+                    del virtual[p]
+                    self.ns[f"G{p}"] = group.table
+                    self.ns[f"S{p}"] = group.state
+                    body += [f"c = G{p}[S{p}.new_mask]",
+                             "if tokens[c[1]]:", "    _unsafe(c[0], c[1])",
+                             "if c[2] is not None:", "    try:", "        c[2]()",
+                             "    except Exception as e:", "        _failure(c[1], e)"]
+                    produce("c[3]", group.out_place)
+                    count += 2
+                    changed = True
+                    continue
+                for u in consumers[p]:
+                    if (eager[u] and guards[u] is None and gates[u] is None and u not in fired
+                            and all(q in virtual for q in pre[u])):
+                        fired.add(u)
+                        for q in pre[u]:
+                            del virtual[q]
+                        self._effect(u, body)
+                        for q in post[u]:
+                            produce(str(u), q)
+                        count += 1
+                        changed = True
+                        break
+        for p in virtual:
+            self._mark(p, body)
+        return body, count

@@ -1,0 +1,132 @@
+"""The token game of the flat net: markings, enabled transitions, firing.
+
+A transition is *enabled* when each of its input places holds a *usable* token. A place's
+token is usable once the operation of the place has finished (paper V-C): :meth:`occupy`
+puts a token that is not usable yet, :meth:`release` makes it usable. The enabled set is
+kept up to date incrementally: each transition counts its input places without a usable
+token, so a firing touches only the transitions that share a place with it.
+
+The net is safe by construction; a firing that would put a second token into a place is an
+:class:`UnsafeFiring` (E807).
+"""
+
+from __future__ import annotations
+
+import random
+
+from rssm_dsl.hpn.flat import FlatNet
+
+
+class UnsafeFiring(Exception):
+    def __init__(self, transition: int, place: int) -> None:
+        super().__init__(f"transition {transition} would mark place {place} twice")
+        self.transition = transition
+        self.place = place
+
+
+class TokenGame:
+    __slots__ = ("consumers", "enabled", "missing", "net", "post", "pre", "tokens", "usable")
+
+    def __init__(self, net: FlatNet) -> None:
+        self.net = net
+        self.pre: list[tuple[int, ...]] = [t.pre for t in net.transitions]
+        self.post: list[tuple[int, ...]] = [t.post for t in net.transitions]
+        consumers: list[list[int]] = [[] for _ in net.places]
+        for t in net.transitions:
+            for p in t.pre:
+                consumers[p].append(t.index)
+        self.consumers: list[tuple[int, ...]] = [tuple(c) for c in consumers]
+        self.missing: list[int] = [len(t.pre) for t in net.transitions]
+        self.tokens = bytearray(len(net.places))    # a token is there (usable or not)
+        self.usable = bytearray(len(net.places))    # ... and its operation has finished
+        self.enabled: set[int] = {t.index for t in net.transitions if not t.pre}
+        for p in sorted(net.initial):
+            self.tokens[p] = 1
+            self.release(p)
+
+    # ------------------------------------------------------------------ primitives
+    def release(self, p: int) -> None:
+        """The token in ``p`` becomes usable."""
+        self.usable[p] = 1
+        missing, enabled = self.missing, self.enabled
+        for t in self.consumers[p]:
+            m = missing[t] - 1
+            missing[t] = m
+            if m == 0:
+                enabled.add(t)
+
+    def consume(self, t: int) -> None:
+        """Remove the tokens of ``t``'s input places."""
+        missing, enabled, consumers = self.missing, self.enabled, self.consumers
+        tokens, usable = self.tokens, self.usable
+        for p in self.pre[t]:
+            tokens[p] = 0
+            usable[p] = 0
+            for u in consumers[p]:
+                if missing[u] == 0:
+                    enabled.discard(u)
+                missing[u] += 1
+
+    def occupy(self, t: int, p: int) -> None:
+        """Put a (not yet usable) token into ``p``, an output place of ``t``."""
+        if self.tokens[p]:
+            raise UnsafeFiring(t, p)
+        self.tokens[p] = 1
+
+    def fire(self, t: int) -> None:
+        """Fire ``t`` with every output token usable at once (no operations)."""
+        self.consume(t)
+        for p in self.post[t]:
+            self.occupy(t, p)
+            self.release(p)
+
+    def recompute_enabled(self) -> None:
+        """Make the enabled set complete again (the deterministic loop keeps local steps
+        out of it while it runs)."""
+        self.enabled.clear()
+        self.enabled.update(t for t, m in enumerate(self.missing) if m == 0)
+
+    # ------------------------------------------------------------------ views
+    def marking(self) -> frozenset[int]:
+        return frozenset(i for i, v in enumerate(self.tokens) if v)
+
+    def marking_mask(self) -> int:
+        """The marking as a bitmask (bit p set when place p holds a token)."""
+        return sum(1 << i for i, v in enumerate(self.tokens) if v)
+
+    def marked_names(self) -> list[str]:
+        return [self.net.places[i].name for i, v in enumerate(self.tokens) if v]
+
+    # ------------------------------------------------------------------ the pure token game
+    def run_free(self, steps: int, seed: int = 0) -> int:
+        """Fire up to ``steps`` transitions chosen uniformly among the enabled ones (data
+        conditions as free choices, no operations, no time): the verifier's abstraction.
+        Returns the number of firings (fewer when a dead marking is reached)."""
+        rnd = random.Random(seed).random
+        pre, post, consumers = self.pre, self.post, self.consumers
+        missing, enabled, tokens, usable = self.missing, self.enabled, self.tokens, self.usable
+        fired = 0
+        while fired < steps:
+            if not enabled:
+                break
+            candidates = list(enabled)
+            t = candidates[int(rnd() * len(candidates))]
+            for p in pre[t]:
+                tokens[p] = 0
+                usable[p] = 0
+                for u in consumers[p]:
+                    if missing[u] == 0:
+                        enabled.discard(u)
+                    missing[u] += 1
+            for p in post[t]:
+                if tokens[p]:
+                    raise UnsafeFiring(t, p)
+                tokens[p] = 1
+                usable[p] = 1
+                for u in consumers[p]:
+                    m = missing[u] - 1
+                    missing[u] = m
+                    if m == 0:
+                        enabled.add(u)
+            fired += 1
+        return fired

@@ -1,0 +1,111 @@
+"""Run-time state of subsystems and devices: their variables, the data-availability flags,
+behaviour bookkeeping and counters.
+
+Memory versions: during the transition function page P^f every partial function reads the
+pre-state ``vars`` (inputs, memory s^i, outputs) and writes only its own target into
+``stage``; the join transition of P^f commits ``stage`` into ``vars`` (memory s^{i+1} and the
+new outputs) and clears every new(x). A receive writes the input buffer in ``vars`` and sets
+new(x) for it.
+"""
+
+from __future__ import annotations
+
+from collections.abc import Callable
+from dataclasses import dataclass, field
+from typing import Any
+
+from rssm_dsl.interp.clock import Ticker
+from rssm_dsl.interp.device import Device as DeviceImpl
+from rssm_dsl.interp.errors import EvalError
+from rssm_dsl.semantics.model import Device, Subsystem
+
+Predicate = Callable[[dict[str, Any]], Any]
+
+
+@dataclass(eq=False)
+class BehaviourState:
+    name: str
+    conditions: list[tuple[str, str, Predicate]]    # (name, "terminal" | "error", predicate)
+    iterations: int = 0
+
+    @property
+    def has_error_condition(self) -> bool:
+        return any(kind == "error" for _, kind, _ in self.conditions)
+
+
+@dataclass(eq=False)
+class SubsystemState:
+    model: Subsystem
+    vars: dict[str, Any]
+    behaviours: dict[str, BehaviourState]
+    ticker: Ticker | None
+    inputs: tuple[str, ...]
+    stage: dict[str, Any] = field(default_factory=dict)
+    new_flags: list[bool] = field(default_factory=list)
+    new_mask: int = 0
+    i: int = 0                                   # the discrete time stamp of the paper
+    behaviour: str | None = None                 # current behaviour; None before/after
+    started: bool = False
+    ended: bool = False
+    switches: int = 0
+    conds: dict[str, bool] | None = None         # conditions at the end of this iteration
+    stop_value: bool = False
+    last_conds: dict[str, bool] = field(default_factory=dict)  # of the behaviour that ended
+    failed: EvalError | None = None              # an operation failed in this iteration
+    handled_errors: int = 0
+
+    def __post_init__(self) -> None:
+        self.new_flags = [False] * len(self.inputs)
+
+    @property
+    def id(self) -> str:
+        return self.model.id
+
+    def stop(self) -> bool:
+        """f^tau or f^eps of the current behaviour, evaluated once per iteration end."""
+        if self.conds is None:
+            self.evaluate_conditions()
+        return self.stop_value
+
+    def evaluate_conditions(self) -> None:
+        assert self.behaviour is not None
+        beh = self.behaviours[self.behaviour]
+        values: dict[str, bool] = {}
+        for name, _, pred in beh.conditions:
+            try:
+                values[name] = bool(pred(self.vars))
+            except EvalError as e:
+                if not beh.has_error_condition:
+                    raise
+                self.fail(e)
+                values[name] = False
+        if self.failed is not None:
+            for name, kind, _ in beh.conditions:
+                if kind == "error":
+                    values[name] = True
+        self.conds = values
+        self.stop_value = any(values.values())
+
+    def fail(self, error: EvalError) -> None:
+        """An operation failed; the behaviour's error conditions will hold at its end."""
+        if self.failed is None:
+            self.failed = error
+        self.handled_errors += 1
+
+    def can_handle(self) -> bool:
+        return (self.behaviour is not None
+                and self.behaviours[self.behaviour].has_error_condition)
+
+
+@dataclass(eq=False)
+class DeviceState:
+    model: Device
+    vars: dict[str, Any]
+    impl: DeviceImpl
+    ticker: Ticker | None
+    steps: int = 0
+    last_step: int | None = None                 # ns of the previous step
+
+    @property
+    def id(self) -> str:
+        return self.model.id

@@ -1,0 +1,147 @@
+"""`rssmc simulate` end to end, as a subprocess like a user would run it."""
+
+from __future__ import annotations
+
+import json
+import os
+import signal
+import subprocess
+import sys
+import time
+from pathlib import Path
+
+from rssm_dsl.hpn.flatten import flatten
+from rssm_dsl.interp.trace import read_trace
+from rssm_dsl.verify import VerifyOptions, verify
+from tests.interp.conftest import EXAMPLES, LWR_STATE, ROOT, SPECS, compiled
+
+CONSTANT = "a1.E.lwr=rssm_stdlib.devices.constant:ConstantDevice"
+
+
+def rssmc(*args: str | Path, cwd: Path | None = None) -> subprocess.CompletedProcess[str]:
+    return subprocess.run([sys.executable, "-m", "rssm_dsl", *map(str, args)], cwd=cwd or ROOT,
+                          capture_output=True, text=True, timeout=120)
+
+
+def test_simulate_lwr4_with_a_trace(tmp_path: Path) -> None:
+    trace = tmp_path / "t.jsonl"
+    r = rssmc("simulate", EXAMPLES / "lwr4_circle.rssm", "--until", "0.1", "--device", CONSTANT,
+              "--device-option", f"a1.E.lwr:values={json.dumps({'state': LWR_STATE})}",
+              "--trace", trace)
+    assert r.returncode == 0, r.stderr
+    assert "a1.e.lwr  move" in r.stdout and "i=101" in r.stdout
+    assert "reached t = 0.1 s" in r.stderr and "events written" in r.stderr
+    events = read_trace(trace)
+    assert events[0]["event"] == "start" and events[-1]["event"] == "end"
+    kinds = {e["event"] for e in events}
+    assert {"fire", "enter", "send", "receive"} <= kinds
+    fire = next(e for e in events if e["event"] == "fire")
+    assert fire["transition"].startswith("t") and ".rssm:" in fire["span"]
+
+
+MOTOR = """
+device effector Motor {
+  input command: float nonblocking
+  output angle: float nonblocking
+  binding "no_such_module_here:Motor"
+}
+system s {
+  agent a1 {
+    control c { output goal: float to e.m nonblocking
+      behaviour b { update goal { goal := 1.0 } terminal never when false } initial b }
+    effector m {
+      input goal: float from c nonblocking
+      input angle: float from E.motor nonblocking
+      output command: float to E.motor nonblocking
+      behaviour b { update command { command := goal - angle } terminal never when false }
+      initial b
+    }
+    real effector motor: Motor
+  }
+}
+"""
+
+
+def test_missing_device_binding_is_a_clean_e801(tmp_path: Path) -> None:
+    spec = tmp_path / "motor.rssm"
+    spec.write_text(MOTOR)
+    r = rssmc("simulate", spec, "--steps", "10")
+    assert r.returncode == 1 and "Traceback" not in r.stderr
+    assert "[E801]" in r.stderr and "--device a1.E.motor=" in r.stderr
+    assert "real effector motor: Motor" in r.stderr            # the spec line is shown
+    r = rssmc("simulate", spec, "--steps", "200", "--device",
+              "a1.E.motor=rssm_stdlib.devices.echo:EchoDevice")
+    assert r.returncode == 0 and "stopped after 200 firings" in r.stderr
+
+
+def test_usage_errors() -> None:
+    r = rssmc("simulate", EXAMPLES / "relay_blocking.rssm", "--device", "a9.E.x=m:C")
+    assert r.returncode == 2 and "no device a9.E.x" in r.stderr
+    r = rssmc("simulate", EXAMPLES / "relay_blocking.rssm", "--mode", "fast")
+    assert r.returncode == 2
+    r = rssmc("simulate", EXAMPLES / "relay_blocking.rssm", "--replay", "/nonexistent.json")
+    assert r.returncode == 2 and "cannot read" in r.stderr
+
+
+def test_deadlock_exit_code_and_json(tmp_path: Path) -> None:
+    r = rssmc("simulate", SPECS / "handshake_deadlock.rssm", "--until", "1", "-f", "json")
+    assert r.returncode == 1
+    out = json.loads(r.stdout)
+    assert out["reason"] == "deadlock" and out["diagnostics"][0]["code"] == "E805"
+    assert "p[1,c,greet,snd,1,wait]" in out["marking"]
+
+
+def test_replay_of_a_verifier_report(tmp_path: Path) -> None:
+    comp = compiled(SPECS / "handshake_deadlock.rssm")
+    assert comp.hpn is not None
+    report = verify(flatten(comp.hpn), VerifyOptions(check_progress=False))
+    path = tmp_path / "report.json"
+    path.write_text(json.dumps(report.to_json()))
+    r = rssmc("simulate", SPECS / "handshake_deadlock.rssm", "--replay", path)
+    assert r.returncode == 1, r.stderr
+    assert "replay: deadlock reproduced" in r.stderr and "[E805]" in r.stderr
+
+
+def test_concurrent_mode_runs_on_the_wall_clock() -> None:
+    t0 = time.monotonic()
+    r = rssmc("simulate", EXAMPLES / "relay_blocking.rssm", "--mode", "concurrent",
+              "--until", "0.5", "-f", "json")
+    assert r.returncode == 0, r.stderr
+    out = json.loads(r.stdout)
+    assert out["reason"] == "until" and out["time"] >= 0.5
+    assert time.monotonic() - t0 >= 0.5
+    a1 = next(s for s in out["summary"]["subsystems"] if s["id"] == "a1.c")
+    assert 10 <= a1["i"] <= 52            # 100 Hz for 0.5 s (loaded machines lag behind)
+
+
+def test_ctrl_c_flushes_the_trace(tmp_path: Path) -> None:
+    trace = tmp_path / "t.jsonl"
+    p = subprocess.Popen([sys.executable, "-m", "rssm_dsl", "simulate",
+                          str(EXAMPLES / "relay_blocking.rssm"), "--mode", "concurrent",
+                          "--trace", str(trace)], cwd=ROOT, stdout=subprocess.PIPE,
+                         stderr=subprocess.PIPE, text=True)
+    deadline = time.monotonic() + 30
+    while (not trace.exists() or trace.stat().st_size == 0) and time.monotonic() < deadline:
+        time.sleep(0.1)
+    time.sleep(0.5)
+    p.send_signal(signal.SIGINT)
+    _, err = p.communicate(timeout=30)
+    assert p.returncode == 130, err
+    assert "interrupted" in err and "Traceback" not in err
+    events = read_trace(trace)
+    assert events[-1]["event"] == "end" and events[-1]["reason"] == "interrupted"
+    assert os.path.getsize(trace) > 0
+
+
+def test_device_patterns_and_the_live_summary(tmp_path: Path) -> None:
+    from rssm_dsl.synth import ring_system
+
+    spec = tmp_path / "ring2.rssm"
+    spec.write_text(ring_system(2))
+    r = rssmc("simulate", spec, "--until", "30", "--device", "*.E.*=rssm_stdlib.devices.echo:"
+              "EchoDevice", "--live")
+    assert r.returncode == 0, r.stderr
+    assert "\x1b[" in r.stderr and "system ring2:" in r.stderr      # redrawn in place
+    assert "device a2.E.right" in r.stdout
+    r = rssmc("simulate", spec, "--device", "*.R.*=m:C")
+    assert r.returncode == 2 and "no device *.R.*" in r.stderr

@@ -1,0 +1,103 @@
+"""The scripted devices of the standard library and the device interface."""
+
+from __future__ import annotations
+
+import json
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+import pytest
+
+from rssm_dsl.bindings import resolve
+from rssm_dsl.interp.device import Device, DeviceConfigError, DeviceSpec
+from rssm_dsl.semantics.types import BOOL, FLOAT, INT, ArrayT, RecordT
+
+BLOB = RecordT("Blob", (("visible", BOOL), ("x", FLOAT), ("ids", ArrayT(INT, 2))))
+
+
+def spec(tmp_path: Path, options: dict[str, str] | None = None,
+         outputs: dict[str, Any] | None = None, inputs: dict[str, Any] | None = None
+         ) -> DeviceSpec:
+    outs = outputs if outputs is not None else {"frame": BLOB}
+    ins = inputs if inputs is not None else {}
+    initial = {"frame": {"visible": False, "x": 0.0, "ids": (0, 0)}, "angle": 0.0,
+               "command": 0.0}
+    return DeviceSpec("a1.R.cam", "cam", "Camera", "receptor", 30.0, ins, outs,
+                      {k: initial[k] for k in (*ins, *outs)}, options=options or {},
+                      base_dir=tmp_path)
+
+
+def make(binding: str, s: DeviceSpec) -> Device:
+    cls = resolve(binding, None)
+    assert callable(cls)
+    dev = cls(s)
+    assert isinstance(dev, Device)
+    return dev
+
+
+def test_constant_device(tmp_path: Path) -> None:
+    dev = make("rssm_stdlib.devices.constant:ConstantDevice", spec(tmp_path))
+    dev.step(0.1)
+    assert dev.measure()["frame"]["visible"] is False
+    values = json.dumps({"frame": {"visible": True, "x": 0.5, "ids": [1, 2]}})
+    dev = make("rssm_stdlib.devices.constant:ConstantDevice",
+               spec(tmp_path, {"values": values}))
+    assert dev.measure()["frame"] == {"visible": True, "x": 0.5, "ids": (1, 2)}
+    with pytest.raises(DeviceConfigError, match="no output buffer 'nope'"):
+        make("rssm_stdlib.devices.constant:ConstantDevice",
+             spec(tmp_path, {"values": '{"nope": 1}'}))
+
+
+def test_echo_device(tmp_path: Path) -> None:
+    s = spec(tmp_path, outputs={"angle": FLOAT}, inputs={"command": FLOAT})
+    dev = make("rssm_stdlib.devices.echo:EchoDevice", s)
+    assert dev.measure() == {"angle": 0.0}
+    dev.receive("command", 1.25)
+    dev.step(0.01)
+    assert dev.measure() == {"angle": 1.25}
+
+
+def test_csv_replay_by_rows_and_by_time(tmp_path: Path) -> None:
+    (tmp_path / "cam.csv").write_text(
+        "frame.visible,frame.x,frame.ids[0],frame.ids[1]\n"
+        "false,0.0,1,2\ntrue,0.5,3,4\n")
+    dev = make("rssm_stdlib.devices.replay:CsvReplay", spec(tmp_path))
+    seen = []
+    for _ in range(3):
+        dev.step(1 / 30)
+        seen.append(dev.measure()["frame"]["x"])
+    assert seen == [0.0, 0.5, 0.5]                        # one row per step, then held
+    (tmp_path / "timed.csv").write_text("time,frame.visible,frame.x,frame.ids[0],frame.ids[1]\n"
+                                        "0.0,false,0.0,0,0\n0.25,true,1.0,0,0\n")
+    dev = make("rssm_stdlib.devices.replay:CsvReplay", spec(tmp_path, {"file": "timed.csv"}))
+    xs = []
+    for _ in range(4):
+        dev.step(0.1)
+        xs.append(dev.measure()["frame"]["x"])
+    assert xs == [0.0, 0.0, 1.0, 1.0]                     # by the time column
+    assert isinstance(dev.measure()["frame"]["ids"], tuple)
+
+
+def test_csv_replay_reports_bad_files(tmp_path: Path) -> None:
+    with pytest.raises(DeviceConfigError, match="cannot read"):
+        make("rssm_stdlib.devices.replay:CsvReplay", spec(tmp_path))
+    (tmp_path / "cam.csv").write_text("frame.visible,frame.x\ntrue,0.5\n")
+    with pytest.raises(DeviceConfigError, match=r"needs column\(s\) frame.ids\[0\]"):
+        make("rssm_stdlib.devices.replay:CsvReplay", spec(tmp_path))
+    (tmp_path / "cam.csv").write_text(
+        "frame.visible,frame.x,frame.ids[0],frame.ids[1]\nmaybe,0.5,1,2\n")
+    with pytest.raises(DeviceConfigError, match="'maybe' is not a bool"):
+        make("rssm_stdlib.devices.replay:CsvReplay", spec(tmp_path))
+
+
+def test_lwr4_impedance_op_matches_the_dynamics_library() -> None:
+    impedance = resolve("rssm_stdlib.lwr4plus.ops:impedance", None)
+    dyn = resolve("rssm_stdlib.lwr4plus.dynamics:impedance_torque", None)
+    assert callable(impedance) and callable(dyn)
+    q = np.array([0.0, -0.6, 0.0, 1.4, 0.0, 0.6 + 1.4 - np.pi, 0.0])
+    state = {"q": q, "dq": np.zeros(7), "position": np.zeros(3), "velocity": np.zeros(3)}
+    sp = {"position": np.array([0.6, 0.0, 0.4]), "velocity": np.zeros(3)}
+    tau = impedance(state, sp, 2000.0, 100.0)
+    assert tau.shape == (7,) and not tau.flags.writeable
+    assert np.allclose(tau, dyn(q, np.zeros(7), sp["position"], sp["velocity"], 2000.0, 100.0))

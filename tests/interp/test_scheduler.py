@@ -1,0 +1,239 @@
+"""The scheduler: reproducibility, the clock, stopping, the communication modes' meaning,
+behaviour switching, deadlocks, Ctrl-C."""
+
+from __future__ import annotations
+
+import shutil
+from pathlib import Path
+
+import pytest
+
+from rssm_dsl.hpn.flat import FlatNet, FlatPlace, FlatTransition
+from rssm_dsl.interp import RunConfig, SimOptions, Simulator
+from rssm_dsl.interp.engine import TokenGame, UnsafeFiring
+from rssm_dsl.interp.trace import TraceWriter, read_trace
+from rssm_dsl.source import Span
+from tests.interp.conftest import (
+    EXAMPLES,
+    SPECS,
+    compile_text,
+    compiled,
+    lwr4_config,
+    run,
+    runtime,
+)
+
+
+def traced(tmp_path: Path, name: str, comp_path: Path,
+           **options: object) -> list[dict[str, object]]:
+    comp = compiled(comp_path)
+    rt = runtime(comp)
+    rt.tracer = TraceWriter(tmp_path / name)
+    Simulator(rt, SimOptions(**options)).run()   # type: ignore[arg-type]
+    rt.tracer.close()
+    return read_trace(tmp_path / name)
+
+
+def test_same_seed_same_run_other_seed_other_interleaving(tmp_path: Path) -> None:
+    spec = EXAMPLES / "relay_blocking.rssm"
+    a = traced(tmp_path, "a.jsonl", spec, seed=7, until=0.2)
+    b = traced(tmp_path, "b.jsonl", spec, seed=7, until=0.2)
+    c = traced(tmp_path, "c.jsonl", spec, seed=8, until=0.2)
+    assert a == b
+    fires = [[e["transition"] for e in t if e["event"] == "fire"] for t in (a, c)]
+    assert fires[0] != fires[1]
+
+
+def test_macro_steps_and_tracing_change_nothing_but_speed(lwr4: object,
+                                                         tmp_path: Path) -> None:
+    """Local steps compiled into macro steps make the same run as firing them one by one (as
+    a traced run does)."""
+    runs = []
+    for macros, trace in ((True, False), (False, False), (True, True)):
+        rt = runtime(lwr4, lwr4_config())  # type: ignore[arg-type]
+        if trace:
+            rt.tracer = TraceWriter(tmp_path / "t.jsonl")
+        result = Simulator(rt, SimOptions(seed=3, until=0.15, macros=macros)).run()
+        if rt.tracer is not None:
+            rt.tracer.close()
+        runs.append((result.steps, result.marking, {s: (x.i, repr(x.vars)) for s, x in
+                                                    rt.subsystems.items()},
+                     {c: (x.sent, x.received, x.overwritten) for c, x in rt.channels.items()}))
+    assert runs[0] == runs[1] == runs[2]
+
+
+def test_steps_limit_is_exact(lwr4: object) -> None:
+    for n in (1, 17, 1000):
+        _, result = run(lwr4, lwr4_config(), max_steps=n)  # type: ignore[arg-type]
+        assert result.reason == "steps" and result.steps == n
+
+
+def test_frequencies_are_honoured_on_the_simulated_clock(lwr4: object) -> None:
+    rt, result = run(lwr4, lwr4_config(), until=0.5)  # type: ignore[arg-type]
+    assert result.reason == "until" and result.time == 0.5
+    # an iteration starts at every tick 0, 1/f, ..., T: f*T + 1 of them
+    assert rt.subsystems["a1.e.lwr"].i == 501
+    assert rt.subsystems["a1.c"].i == 51
+    assert rt.devices["a1.E.lwr"].steps == 501
+    assert all(s.ticker is not None and s.ticker.overruns == 0
+               for s in rt.subsystems.values())
+
+
+def test_blocking_modes_keep_their_meaning() -> None:
+    comp = compiled(EXAMPLES / "relay_blocking.rssm")
+    rt, _ = run(comp, until=1.0, seed=2)
+    request = rt.channels["a1.c.request->a2.c.request"]      # blocking / blocking
+    reply = rt.channels["a2.c.reply->a1.c.reply"]            # nonblocking / blocking
+    assert request.overwritten == 0 and request.sent - request.received in (0, 1)
+    assert reply.received <= reply.sent
+    a1, a2 = rt.subsystems["a1.c"], rt.subsystems["a2.c"]
+    # a1 runs at 100 Hz; every request is taken, a2 answers each one
+    assert a1.i == 101 and abs(a2.i - a1.i) <= 1
+    # up counts to 5 and down counts back: the switches alternate
+    assert a1.switches >= 8 and a1.behaviours["up"].iterations > 0 \
+        and a1.behaviours["down"].iterations > 0
+
+
+def test_new_is_true_once_per_received_value(tmp_path: Path) -> None:
+    text = """
+system t {
+  agent a1 {
+    control c @ 10 Hz {
+      memory k: int = 0
+      output v: int to e.x nonblocking
+      behaviour run {
+        update v { v := k }
+        update memory { k := k + 1 }
+        terminal never when false
+      }
+      initial run
+    }
+    effector x @ 100 Hz {
+      input v: int from c nonblocking
+      memory fresh: int = 0
+      memory stale: int = 0
+      memory last: int = -1
+      behaviour take {
+        update memory {
+          case new(v):
+            fresh := fresh + 1
+            last := v
+          otherwise:
+            stale := stale + 1
+        }
+        terminal never when fresh < 0 or stale < 0 or last < -1
+      }
+      initial take
+      switch take -> take when never
+    }
+  }
+}
+"""
+    comp = compile_text(tmp_path, text)
+    rt, _ = run(comp, until=1.0)
+    x = rt.subsystems["a1.e.x"]
+    ch = rt.channels["a1.c.v->a1.e.x.v"]
+    # new(v) held for exactly the values received, each used by one transition function
+    assert x.vars["fresh"] in (ch.received, ch.received - 1)
+    assert x.vars["fresh"] + x.vars["stale"] in (x.i, x.i - 1)
+    assert 9 <= ch.received <= 11 and x.vars["stale"] > 80
+
+
+def test_otherwise_switch_and_termination(tmp_path: Path) -> None:
+    text = """
+system t {
+  agent a1 {
+    control c {
+      memory n: int = 0
+      behaviour count {
+        update memory { n := n + 1 }
+        terminal enough when n >= 3
+      }
+      behaviour odd {
+        update memory { n := n + 10 }
+        terminal once when true
+      }
+      initial count
+      switch count -> odd when n % 2 == 1
+      switch count -> end otherwise
+      switch odd -> end when once
+    }
+  }
+}
+"""
+    comp = compile_text(tmp_path, text)
+    rt, result = run(comp, max_steps=10_000)
+    c = rt.subsystems["a1.c"]
+    assert result.reason == "finished"
+    assert c.ended and c.vars["n"] == 13 and c.behaviours["odd"].iterations == 1
+
+
+def test_deadlock_is_reported_with_the_user_names() -> None:
+    comp = compiled(SPECS / "handshake_deadlock.rssm")
+    _, result = run(comp, until=5.0)
+    assert result.reason == "deadlock"
+    (d,) = result.diagnostics
+    assert d.code == "E805"
+    waiting = {b.owner: b.place for b in result.blocked}
+    assert waiting == {"a1.c": "p[1,c,greet,snd,1,wait]", "a2.c": "p[2,c,greet,snd,1,wait]"}
+    assert "a1.c waits in p[1,c,greet,snd,1,wait]" in d.message
+    assert result.time == 0.0
+
+
+def test_ctrl_c_stops_cleanly_and_flushes(tmp_path: Path) -> None:
+    (tmp_path / "stopper.py").write_text(
+        "def maybe_stop(x):\n"
+        "    if x >= 5.0:\n"
+        "        raise KeyboardInterrupt\n"
+        "    return x\n")
+    text = """
+extern maybe_stop(x: float) -> float = "stopper:maybe_stop"
+system t {
+  agent a1 {
+    control c @ 100 Hz {
+      memory x: float = 0.0
+      behaviour b {
+        update memory { x := maybe_stop(x + 1.0) }
+        terminal never when false
+      }
+      initial b
+    }
+  }
+}
+"""
+    comp = compile_text(tmp_path, text)
+    rt = runtime(comp, RunConfig(base_dir=tmp_path))
+    rt.tracer = TraceWriter(tmp_path / "t.jsonl")
+    result = Simulator(rt, SimOptions(until=10.0)).run()
+    rt.tracer.close()
+    assert result.reason == "interrupted" and result.ok
+    assert rt.subsystems["a1.c"].vars["x"] == 4.0
+    events = read_trace(tmp_path / "t.jsonl")
+    assert events[-1]["event"] == "end" and events[-1]["reason"] == "interrupted"
+
+
+def test_token_game_detects_unsafe_firings() -> None:
+    s = Span("n", 1, 1, 1, 1)
+    places = tuple(FlatPlace(i, f"p{i}", f"p{i}", s, (f"p{i}",)) for i in range(3))
+    trans = (FlatTransition(0, "t0", "t0", s, (0,), (1, 2)),
+             FlatTransition(1, "t1", "t1", s, (1,), (2,)))
+    game = TokenGame(FlatNet("n", places, trans, frozenset({0}), frozenset()))
+    game.fire(0)
+    assert game.marking() == {1, 2} and game.enabled == {1}
+    with pytest.raises(UnsafeFiring):
+        game.fire(1)
+
+
+def test_spec_folder_copy_runs_the_camera_example(tmp_path: Path) -> None:
+    """The camera example: CSV replay into a virtual receptor, behaviour switches on data."""
+    for name in ("camera_tracker.rssm", "camera.csv"):
+        shutil.copy(EXAMPLES / name, tmp_path / name)
+    comp = compiled(tmp_path / "camera_tracker.rssm")
+    rt, result = run(comp, until=3.0, seed=1)
+    assert result.reason == "until"
+    c = rt.subsystems["a1.c"]
+    assert c.behaviours["search"].iterations > 0 and c.behaviours["track"].iterations > 0
+    assert c.switches >= 2
+    assert rt.devices["a1.R.camera"].steps == 91 and rt.devices["a1.E.motor"].steps == 301
+    pan = rt.subsystems["a1.e.pan"]
+    assert abs(pan.vars["command"] - rt.devices["a1.E.motor"].vars["angle"]) <= 0.02 + 1e-9
