@@ -3,13 +3,13 @@
 A P-semiflow is a vector ``y >= 0``, ``y != 0``, with ``y . C = 0`` for the incidence matrix
 ``C``: the weighted token count ``y . m`` is the same in every reachable marking. The minimal
 ones (minimal support; they are the extreme rays of the cone of semiflows) are computed with
-the Farkas algorithm in the Martinez–Silva form: start from ``[C | I]``, eliminate one
+the Farkas algorithm in the Martinez-Silva form: start from ``[C | I]``, eliminate one
 transition column at a time by combining each row with a positive entry with each row with a
 negative entry, and keep only the combinations of *adjacent* rows (the combinatorial test of
 the double description method: rows ``a`` and ``b`` are combined only if no third row has a
-support inside ``supp(a) ∪ supp(b)``), so that every intermediate row is an extreme ray and no
-non-minimal or duplicate row is ever stored. Arithmetic is exact: int64 with an overflow guard
-that switches to Python integers.
+support inside the union of ``supp(a)`` and ``supp(b)``), so that every intermediate row is an
+extreme ray and no non-minimal or duplicate row is ever stored. Arithmetic is exact: int64
+with an overflow guard that switches to Python integers.
 
 The number of minimal semiflows can grow exponentially (a choice between two parallel blocks
 multiplies their branch counts), so the computation stops at ``max_rows`` intermediate rows or
@@ -165,8 +165,8 @@ def _eliminate(
         return keep_a, keep_y
     support = (y != 0)
     supp_f = support.astype(np.float32)
-    pi, ki = np.meshgrid(pos, neg, indexing="ij")
-    pi, ki = pi.ravel(), ki.ravel()
+    grid_p, grid_k = np.meshgrid(pos, neg, indexing="ij")
+    pi, ki = grid_p.ravel(), grid_k.ravel()
     block = max(1, _PAIR_CELLS // max(1, support.shape[0]))
     adjacent: list[npt.NDArray[np.bool_]] = []
     for start in range(0, len(pi), block):
@@ -210,7 +210,7 @@ def _may_overflow(a: IntMatrix, y: IntMatrix, fa: IntMatrix, fb: IntMatrix) -> b
 def _row_gcd(m: IntMatrix) -> IntMatrix:
     if m.dtype == np.object_:
         return np.array([math.gcd(*(int(v) for v in row)) or 1 for row in m], dtype=np.object_)
-    g = np.gcd.reduce(np.abs(m), axis=1)
+    g: npt.NDArray[np.int64] = np.gcd.reduce(np.abs(m), axis=1)
     g[g == 0] = 1
     return g
 

@@ -57,7 +57,7 @@ class NetBits:
     nplaces: int
     ntrans: int
     initial: int
-    final: int                      # mask of net.final; a marking m is final iff final and m ⊇ final
+    final: int                      # mask of net.final; m is final iff final != 0, m ⊇ final
     pre: tuple[int, ...]            # per transition: input places
     post: tuple[int, ...]           # per transition: output places
     consume: tuple[int, ...]        # per transition: pre \ post (places emptied by the firing)
@@ -73,19 +73,19 @@ class NetBits:
     def of(net: FlatNet) -> NetBits:
         nplaces = len(net.places)
         ntrans = len(net.transitions)
-        for i, p in enumerate(net.places):
-            if p.index != i:
-                raise ValueError(f"place {p.name!r} has index {p.index}, expected {i}")
-        for i, t in enumerate(net.transitions):
-            if t.index != i:
-                raise ValueError(f"transition {t.name!r} has index {t.index}, expected {i}")
-            for q in (*t.pre, *t.post):
+        for i, place in enumerate(net.places):
+            if place.index != i:
+                raise ValueError(f"place {place.name!r} has index {place.index}, expected {i}")
+        for i, tr in enumerate(net.transitions):
+            if tr.index != i:
+                raise ValueError(f"transition {tr.name!r} has index {tr.index}, expected {i}")
+            for q in (*tr.pre, *tr.post):
                 if not 0 <= q < nplaces:
-                    raise ValueError(f"transition {t.name!r} refers to place {q}, out of range")
+                    raise ValueError(f"transition {tr.name!r} refers to place {q}, out of range")
         pre = tuple(to_mask(t.pre) for t in net.transitions)
         post = tuple(to_mask(t.post) for t in net.transitions)
-        consume = tuple(a & ~b for a, b in zip(pre, post))
-        produce = tuple(b & ~a for a, b in zip(pre, post))
+        consume = tuple(a & ~b for a, b in zip(pre, post, strict=True))
+        produce = tuple(b & ~a for a, b in zip(pre, post, strict=True))
         consumers = [0] * nplaces
         producers = [0] * nplaces
         for t in range(ntrans):
@@ -128,9 +128,9 @@ class NetBits:
 
     def iteration_mask(self, subsystem: str) -> int:
         mask = 0
-        for t in self.net.transitions:
-            if t.role is Role.ITERATION and t.subsystem == subsystem:
-                mask |= 1 << t.index
+        for tr in self.net.transitions:
+            if tr.role is Role.ITERATION and tr.subsystem == subsystem:
+                mask |= 1 << tr.index
         return mask
 
     def marking_of(self, mask: int) -> frozenset[int]:

@@ -88,6 +88,7 @@ class SpinResult:
     depth: int = 0
     error_depth: int | None = None      # BFS depth of the first error (SPIN counts the init step)
     complete: bool = False              # the search covered the whole state space
+    rate: float = 0.0                   # pan's own figure, states per second of search
     compile_seconds: float = 0.0
     run_seconds: float = 0.0
     message: str = ""
@@ -190,6 +191,8 @@ def parse_pan(out: str, compile_seconds: float = 0.0, run_seconds: float = 0.0) 
     stored = num(_NUM + r"\s+states, stored")
     trans = num(_NUM + r"\s+transitions \(= stored\+matched\)")
     depth = num(r"depth reached\s+" + _NUM)
+    rate_match = re.search(r"pan: rate\s+([0-9.e+]+)", out)
+    rate = float(rate_match.group(1)) if rate_match else 0.0
     at = re.search(r"pan:\d+: .*\(at depth (\d+)\)", out)
     error_depth = int(at.group(1)) if at else None
     truncated = "max search depth too small" in out or "out of memory" in out.lower()
@@ -202,5 +205,5 @@ def parse_pan(out: str, compile_seconds: float = 0.0, run_seconds: float = 0.0) 
     return SpinResult(
         True, ran=True, deadlock=deadlock, unsafe=unsafe, errors=errors,
         states_stored=stored, transitions=trans, depth=depth, error_depth=error_depth,
-        complete=complete,
+        complete=complete, rate=rate,
         compile_seconds=compile_seconds, run_seconds=run_seconds, message=message, output=out)

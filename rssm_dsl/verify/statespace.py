@@ -2,10 +2,10 @@
 
 Markings are bitsets split into 64-bit words (``NetBits``). For every level of the BFS the
 enabled matrix (frontier states x transitions) is computed in one vectorised expression, the
-successors of all enabled pairs are formed at once, de-duplicated with ``np.unique`` and looked
-up in a ``dict`` of visited markings (one Python operation per distinct new candidate, the only
-per-state Python work). Because whole levels are expanded in order, the parent pointers give
-shortest counterexamples.
+successors of all enabled pairs are formed at once and looked up in (or added to) a hash table
+of visited markings that is itself driven by whole arrays (``_Table``): no Python code runs per
+state. Because whole levels are expanded in order, the parent pointers give shortest
+counterexamples.
 
 Found on the way: deadlocks (a state with nothing enabled, final or not; the caller decides),
 the first unsafe firing (a transition that would put a second token into a marked place; the
@@ -29,6 +29,8 @@ import numpy.typing as npt
 from rssm_dsl.verify.netbits import NetBits, from_words, to_words
 
 I64 = npt.NDArray[np.int64]
+I32 = npt.NDArray[np.int32]
+Ints = npt.NDArray[np.int32] | npt.NDArray[np.int64]
 U64 = npt.NDArray[np.uint64]
 Bools = npt.NDArray[np.bool_]
 
@@ -65,13 +67,13 @@ class Graph:
     """The reachability graph: states in BFS order (0 is the initial marking), labelled edges."""
 
     states: U64                     # (nstates, nwords)
-    parent: I64                     # BFS tree: parent state, -1 for the root
-    via: I64                        # BFS tree: transition from the parent, -1 for the root
-    src: I64
-    dst: I64
-    trans: I64
-    _fwd: tuple[I64, I64] | None = field(default=None, repr=False)
-    _bwd: tuple[I64, I64] | None = field(default=None, repr=False)
+    parent: I32                     # BFS tree: parent state, -1 for the root
+    via: I32                        # BFS tree: transition from the parent, -1 for the root
+    src: I32                        # edges (int32 to halve the memory of large graphs)
+    dst: I32
+    trans: I32
+    _fwd: tuple[I64, Ints] | None = field(default=None, repr=False)
+    _bwd: tuple[I64, Ints] | None = field(default=None, repr=False)
 
     @property
     def size(self) -> int:
@@ -87,26 +89,26 @@ class Graph:
             state = int(self.parent[state])
         return tuple(reversed(steps))
 
-    def forward(self) -> tuple[I64, I64]:
+    def forward(self) -> tuple[I64, Ints]:
         """CSR of the edges by source: (row pointers, edge ids)."""
         if self._fwd is None:
-            self._fwd = _csr(self.src, self.size)
+            # edges are generated in the order of their source states: no sort needed
+            ptr = np.zeros(self.size + 1, dtype=np.int64)
+            np.cumsum(np.bincount(self.src, minlength=self.size), out=ptr[1:])
+            self._fwd = (ptr, np.arange(self.src.size, dtype=np.int64))
         return self._fwd
 
-    def backward(self) -> tuple[I64, I64]:
+    def backward(self) -> tuple[I64, Ints]:
+        """CSR of the edges by target."""
         if self._bwd is None:
-            self._bwd = _csr(self.dst, self.size)
+            order: I32 = np.argsort(self.dst).astype(np.int32)
+            ptr = np.zeros(self.size + 1, dtype=np.int64)
+            np.cumsum(np.bincount(self.dst, minlength=self.size), out=ptr[1:])
+            self._bwd = (ptr, order)
         return self._bwd
 
 
-def _csr(keys: I64, n: int) -> tuple[I64, I64]:
-    order = np.argsort(keys, kind="stable").astype(np.int64)
-    ptr = np.zeros(n + 1, dtype=np.int64)
-    np.cumsum(np.bincount(keys, minlength=n), out=ptr[1:])
-    return ptr, order
-
-
-def gather(ptr: I64, order: I64, nodes: I64) -> I64:
+def gather(ptr: I64, order: Ints, nodes: Ints) -> Ints:
     """The edge ids of the CSR rows ``nodes``, concatenated."""
     starts = ptr[nodes]
     counts = ptr[nodes + 1] - starts
@@ -114,7 +116,8 @@ def gather(ptr: I64, order: I64, nodes: I64) -> I64:
     if total == 0:
         return np.zeros(0, dtype=np.int64)
     shift = np.repeat(starts - np.cumsum(counts) + counts, counts)
-    return order[shift + np.arange(total, dtype=np.int64)]
+    out: Ints = order[shift + np.arange(total, dtype=np.int64)]
+    return out
 
 
 @dataclass
@@ -135,6 +138,7 @@ class SearchResult:
     fired: frozenset[int] | None = None   # transitions enabled in some state (full only)
     ever_marked: int | None = None        # places marked in some state (full only)
     graph: Graph | None = None
+    full_expansions: int = 0              # stubborn search: markings expanded fully (proviso)
 
 
 def explore_full(
@@ -153,12 +157,11 @@ def explore_full(
     init = np.array([to_words(bits.initial, nw)], dtype=np.uint64)
     visited = _Table(nw)
     visited.lookup_insert(kernel.keys(init), init)
-    level_states: list[U64] = [init]
-    level_parent: list[I64] = [np.array([-1], dtype=np.int64)]
-    level_via: list[I64] = [np.array([-1], dtype=np.int64)]
-    e_src: list[I64] = []
-    e_dst: list[I64] = []
-    e_trans: list[I64] = []
+    level_parent: list[I32] = [np.array([-1], dtype=np.int32)]
+    level_via: list[I32] = [np.array([-1], dtype=np.int32)]
+    e_src: list[I32] = []
+    e_dst: list[I32] = []
+    e_trans: list[I32] = []
     dead_states: list[I64] = []
     fired = np.zeros(nt, dtype=np.bool_)
     frontier, base, depth, nedges = init, 0, 0, 0
@@ -195,20 +198,20 @@ def explore_full(
         trans = np.concatenate(t_parts) if t_parts else np.zeros(0, np.int64)
         fired[trans] = True
         nedges += int(src.shape[0])
-        depth += 1
         base += frontier.shape[0]
         if succ.shape[0] == 0:
             frontier = succ
             continue
         ids, new_pos = visited.lookup_insert(kernel.keys(succ), succ)
         if keep_graph:
-            e_src.append(src)
-            e_trans.append(trans)
-            e_dst.append(ids)
-        frontier = succ[new_pos]
-        level_parent.append(src[new_pos])
-        level_via.append(trans[new_pos])
-        level_states.append(frontier)
+            e_src.append(src.astype(np.int32))
+            e_trans.append(trans.astype(np.int32))
+            e_dst.append(ids.astype(np.int32))
+        frontier = visited.store[visited.size - new_pos.size:visited.size]
+        if new_pos.size:
+            depth += 1                      # the BFS depth of the deepest state so far
+        level_parent.append(src[new_pos].astype(np.int32))
+        level_via.append(trans[new_pos].astype(np.int32))
         if progress is not None:
             progress(Progress(visited.size, nedges, depth, frontier.shape[0],
                               time.monotonic() - start, "full"))
@@ -219,17 +222,17 @@ def explore_full(
             stopped = f"time limit of {time_limit} s reached"
             break
 
-    states = np.concatenate(level_states)
+    states = visited.store[:visited.size]
     parent = np.concatenate(level_parent)
     via = np.concatenate(level_via)
-    z = np.zeros(0, dtype=np.int64)
+    z = np.zeros(0, dtype=np.int32)
     graph = Graph(
         states=states, parent=parent, via=via,
         src=np.concatenate(e_src) if e_src else z,
         dst=np.concatenate(e_dst) if e_dst else z,
         trans=np.concatenate(e_trans) if e_trans else z,
     )
-    dead = np.concatenate(dead_states) if dead_states else z
+    dead = np.concatenate(dead_states) if dead_states else np.zeros(0, dtype=np.int64)
     deadlocks: list[Trace] = []
     final_count = 0
     for s in dead.tolist():
@@ -241,7 +244,7 @@ def explore_full(
     unsafe = None
     if unsafe_at is not None:
         s, t, places = unsafe_at
-        unsafe = Trace(graph.path(s) + (t,), graph.marking(s), t, places)
+        unsafe = Trace((*graph.path(s), t), graph.marking(s), t, places)
         stopped = "stopped at the first unsafe firing"
     ever = 0
     if states.shape[0]:
@@ -327,8 +330,9 @@ class _Kernel:
     def keys(self, succ: U64) -> U64:
         """One uint64 per marking: the marking itself for one word, else a hash."""
         if self.nw == 1:
-            return np.ascontiguousarray(succ[:, 0])
-        h = succ[:, 0] * self.mix[0]
+            first: U64 = np.ascontiguousarray(succ[:, 0])
+            return first
+        h: U64 = succ[:, 0] * self.mix[0]
         for v in range(1, self.nw):
             h ^= (succ[:, v] * self.mix[v]) + (h >> np.uint64(29))
         return h
@@ -348,8 +352,8 @@ class _Table:
     def __init__(self, nw: int, capacity: int = 1 << 12) -> None:
         self.nw = nw
         self.size = 0
-        self.slots = np.full(capacity, -1, dtype=np.int64)
-        self.owner = np.zeros(capacity, dtype=np.int64)
+        self.slots: I32 = np.full(capacity, -1, dtype=np.int32)
+        self.owner: I32 = np.zeros(capacity, dtype=np.int32)
         self.store: U64 = np.zeros((1024, nw), dtype=np.uint64)
         self.hashes: U64 = np.zeros(1024, dtype=np.uint64)
 
@@ -364,8 +368,8 @@ class _Table:
         self.store, self.hashes = store, hashes
 
     def _rehash(self, capacity: int) -> None:
-        self.slots = np.full(capacity, -1, dtype=np.int64)
-        self.owner = np.zeros(capacity, dtype=np.int64)
+        self.slots = np.full(capacity, -1, dtype=np.int32)
+        self.owner = np.zeros(capacity, dtype=np.int32)
         ids = np.arange(self.size, dtype=np.int64)
         slot = self._slot(self.hashes[:self.size])
         while ids.size:                       # all distinct: claim free slots, probe on
@@ -409,7 +413,7 @@ class _Table:
             free = held < 0
             if free.any():
                 cand, cat = active[free], at[free]
-                owner[cat] = cand
+                owner[cat[::-1]] = cand[::-1]        # the first candidate wins a slot
                 won = owner[cat] == cand
                 new = cand[won]
                 new_ids = np.arange(self.size, self.size + new.size, dtype=np.int64)

@@ -1,0 +1,259 @@
+"""Progress: can a subsystem get stuck for good while the rest of the system keeps running?
+
+A global deadlock check calls a system fine as long as *something* can still move. This check
+looks at each subsystem ``s`` that has ITERATION transitions (completing one iteration of one
+of its behaviours) in the full reachability graph.
+
+Definition. ``s`` *loses progress* when some reachable marking ``m`` has all three:
+
+1. ``s`` is not finished in ``m``: some place of ``s`` marked in ``m`` can still lead to an
+   ITERATION transition of ``s`` through ``s``'s own transitions (structurally, ignoring the
+   other input places). A subsystem whose token has gone past its last iteration (to its
+   output place) is finished, not stuck.
+2. No firing sequence from ``m`` fires an ITERATION transition of ``s``: whatever the
+   scheduling and whatever the data (conditions are free choices), ``s`` never completes an
+   iteration again.
+3. No firing sequence from ``m`` reaches a deadlock: the rest of the system keeps moving
+   forever. (A run into a global deadlock is reported as a deadlock instead.)
+
+Equivalently, with 2 and 3: every terminal strongly connected component reachable from ``m``
+has edges and none of them is an ITERATION transition of ``s``. The check is the branching
+property "from every reachable marking where ``s`` is not finished, an iteration of ``s`` or a
+deadlock stays reachable" (``AG (unfinished_s -> EF (iteration_s or deadlock))``). Runs that
+merely *could* starve ``s`` forever in a non-terminal component, while ``s`` can still
+iterate, are not reported: they are scheduling choices (fairness), not design errors.
+
+Computation, all vectorised on the graph: the markings that can reach a deadlock and, per
+subsystem, those that can reach a source of an ITERATION edge of ``s`` (backward breadth-first
+closures over the reversed edges). The first marking of the BFS order satisfying 1-3 is the
+*point of no return* (a shortest path leads to it); from it we find a terminal component (by
+alternating forward and backward closures) and a cycle in it, printed as what the system keeps
+doing while ``s`` waits.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import numpy as np
+import numpy.typing as npt
+
+from rssm_dsl.hpn.flat import FlatNet, Role
+from rssm_dsl.verify.netbits import NetBits, bits, to_words
+from rssm_dsl.verify.statespace import Graph, Ints, gather
+
+Bools = npt.NDArray[np.bool_]
+I64 = npt.NDArray[np.int64]
+
+
+@dataclass(frozen=True, slots=True)
+class ProgressViolation:
+    subsystem: str
+    point: int                      # state id of the point of no return
+    prefix: tuple[int, ...]         # shortest firing sequence from the initial marking to it
+    to_cycle: tuple[int, ...]       # from the point to a marking of a terminal component
+    cycle: tuple[int, ...]          # a cycle in that component (what keeps running)
+    cycle_marking: int              # the marking where the cycle starts
+
+
+@dataclass(frozen=True, slots=True)
+class ProgressResult:
+    violations: tuple[ProgressViolation, ...]
+    checked: tuple[str, ...]        # subsystems checked
+    skipped: tuple[str, ...]        # subsystems without ITERATION transitions
+
+
+def subsystems_of(net: FlatNet) -> list[str]:
+    """The subsystems to check: the net's list, else those owning an ITERATION transition."""
+    if net.subsystems:
+        return list(net.subsystems)
+    seen: dict[str, None] = {}
+    for t in net.transitions:
+        if t.role is Role.ITERATION and t.subsystem is not None:
+            seen.setdefault(t.subsystem)
+    return list(seen)
+
+
+def live_places(net: FlatNet, subsystem: str) -> int:
+    """Places of ``subsystem`` from which its own transitions can reach an ITERATION one."""
+    own = [t for t in net.transitions if t.subsystem == subsystem]
+    owned = {p.index for p in net.places if p.subsystem == subsystem}
+    if not owned:   # places not attributed: those its transitions touch, except shared ones
+        owned = {p for t in own for p in (*t.pre, *t.post)
+                 if net.places[p].channel is None and net.places[p].subsystem is None}
+    live: set[int] = set()
+    changed = True
+    while changed:
+        changed = False
+        for t in own:
+            if t.role is Role.ITERATION or live.intersection(t.post):
+                for p in t.pre:
+                    if p in owned and p not in live:
+                        live.add(p)
+                        changed = True
+    mask = 0
+    for p in live:
+        mask |= 1 << p
+    return mask
+
+
+def _distinct(nodes: Ints, scratch: I64) -> Ints:
+    """``nodes`` without repetitions (order kept), in linear time: the last writer wins."""
+    if nodes.size < 2:
+        return nodes
+    pos = np.arange(nodes.size, dtype=np.int64)
+    scratch[nodes] = pos
+    out: Ints = nodes[scratch[nodes] == pos]
+    return out
+
+
+def backward_closure(graph: Graph, seeds: Bools, within: Bools | None = None) -> Bools:
+    """States from which some seed state is reachable (seeds included), optionally only
+    through states of ``within``."""
+    ptr, order = graph.backward()
+    reached = seeds.copy()
+    scratch = np.zeros(graph.size, dtype=np.int64)
+    frontier: Ints = np.flatnonzero(reached)
+    while frontier.size:
+        preds: Ints = graph.src[gather(ptr, order, frontier)]
+        keep = ~reached[preds]
+        if within is not None:
+            keep &= within[preds]
+        preds = _distinct(preds[keep], scratch)
+        if preds.size == 0:
+            break
+        reached[preds] = True
+        frontier = preds
+    return reached
+
+
+def forward_closure(graph: Graph, start: int) -> Bools:
+    """States reachable from ``start`` (all of them from the initial state 0)."""
+    if start == 0:
+        return np.ones(graph.size, dtype=np.bool_)
+    ptr, order = graph.forward()
+    reached = np.zeros(graph.size, dtype=np.bool_)
+    reached[start] = True
+    scratch = np.zeros(graph.size, dtype=np.int64)
+    frontier: Ints = np.array([start], dtype=np.int64)
+    while frontier.size:
+        succ: Ints = graph.dst[gather(ptr, order, frontier)]
+        succ = _distinct(succ[~reached[succ]], scratch)
+        if succ.size == 0:
+            break
+        reached[succ] = True
+        frontier = succ
+    return reached
+
+
+def shortest_path(graph: Graph, start: int, goal: Bools, allow_empty: bool = True,
+                  ) -> tuple[tuple[int, ...], int]:
+    """A shortest firing sequence from ``start`` to a state in ``goal``, and that state.
+
+    With ``allow_empty=False`` the path has at least one step (a cycle when ``goal`` is start).
+    """
+    if allow_empty and goal[start]:
+        return (), start
+    ptr, order = graph.forward()
+    parent_edge = np.full(graph.size, -1, dtype=np.int64)
+    seen = np.zeros(graph.size, dtype=np.bool_)
+    seen[start] = True
+    frontier: Ints = np.array([start], dtype=np.int64)
+    while frontier.size:
+        edges = gather(ptr, order, frontier)
+        hits = edges[goal[graph.dst[edges]]]
+        if hits.size:
+            e = int(hits[0])
+            steps = [int(graph.trans[e])]
+            node = int(graph.src[e])
+            while node != start:
+                pe = int(parent_edge[node])
+                steps.append(int(graph.trans[pe]))
+                node = int(graph.src[pe])
+            return tuple(reversed(steps)), int(graph.dst[e])
+        dst = graph.dst[edges]
+        fresh = ~seen[dst]
+        edges, dst = edges[fresh], dst[fresh]
+        if dst.size == 0:
+            break
+        dst, first = np.unique(dst, return_index=True)
+        parent_edge[dst] = edges[first]
+        seen[dst] = True
+        frontier = dst
+    raise ValueError("goal not reachable")
+
+
+def terminal_component(graph: Graph, start: int) -> tuple[int, Bools]:
+    """A state of a terminal strongly connected component reachable from ``start``, and it."""
+    x = start
+    while True:
+        reach = forward_closure(graph, x)
+        seed = np.zeros(graph.size, dtype=np.bool_)
+        seed[x] = True
+        back = backward_closure(graph, seed, None if reach.all() else reach)
+        outside = reach & ~back
+        if not outside.any():
+            return x, reach
+        x = int(np.flatnonzero(outside)[0])
+
+
+def marked_any(graph: Graph, mask: int, nwords: int) -> Bools:
+    """Per state: does it mark some place of ``mask``?"""
+    words = to_words(mask, nwords)
+    out = np.zeros(graph.size, dtype=np.bool_)
+    for w, value in enumerate(words):
+        if value:
+            out |= (graph.states[:, w] & np.uint64(value)) != 0
+    return out
+
+
+def check_progress(nb: NetBits, graph: Graph, subsystems: list[str] | None = None,
+                   ) -> ProgressResult:
+    """Subsystems that can lose progress (see the module docstring), with lassos."""
+    net = nb.net
+    names = subsystems_of(net) if subsystems is None else subsystems
+    n = graph.size
+    outdeg = np.bincount(graph.src, minlength=n)
+    can_deadlock = (backward_closure(graph, outdeg == 0) if not outdeg.all()
+                    else np.zeros(n, dtype=np.bool_))
+    violations: list[ProgressViolation] = []
+    checked: list[str] = []
+    skipped: list[str] = []
+    # Fast path: one terminal component that every state reaches and that has edges; a
+    # subsystem iterating inside it can always iterate again.
+    unique_terminal: Bools | None = None
+    if graph.src.size and not (outdeg == 0).any():
+        _, component = terminal_component(graph, 0)
+        if component.all() or backward_closure(graph, component).all():
+            unique_terminal = component
+    for s in names:
+        it_mask = nb.iteration_mask(s)
+        if not it_mask:
+            skipped.append(s)
+            continue
+        checked.append(s)
+        is_it = np.zeros(nb.ntrans, dtype=np.bool_)
+        is_it[bits(it_mask)] = True
+        if unique_terminal is not None and (
+                unique_terminal[graph.src] & is_it[graph.trans]).any():
+            continue
+        seeds = np.zeros(n, dtype=np.bool_)
+        seeds[graph.src[is_it[graph.trans]]] = True
+        can_iterate = backward_closure(graph, seeds)
+        stuck = ~can_iterate & ~can_deadlock
+        if not stuck.any():
+            continue
+        stuck &= marked_any(graph, live_places(net, s), nb.nwords)
+        hits = np.flatnonzero(stuck)
+        if hits.size == 0:
+            continue
+        point = int(hits[0])
+        _, component = terminal_component(graph, point)
+        to_cycle, entry = shortest_path(graph, point, component)
+        goal = np.zeros(n, dtype=np.bool_)
+        goal[entry] = True
+        cycle, _ = shortest_path(graph, entry, goal, allow_empty=False)
+        violations.append(ProgressViolation(
+            subsystem=s, point=point, prefix=graph.path(point), to_cycle=to_cycle,
+            cycle=cycle, cycle_marking=graph.marking(entry)))
+    return ProgressResult(tuple(violations), tuple(checked), tuple(skipped))

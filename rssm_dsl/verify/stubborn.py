@@ -1,0 +1,412 @@
+"""Reduced exploration with stubborn sets: exact deadlock and safeness verdicts, fewer states.
+
+In each marking ``m`` only the enabled transitions of a *stubborn set* ``S`` are fired. ``S`` is
+closed under the usual rules for place/transition nets:
+
+* an enabled ``t`` in ``S`` brings every transition sharing an input place with it (test arcs
+  included): nothing outside ``S`` can take its tokens, so ``t`` commutes with every sequence
+  of transitions outside ``S`` (D1) and stays enabled along it (a key transition, D2);
+* a disabled ``t`` in ``S`` brings every producer of one unmarked input place (its
+  *scapegoat*): nothing outside ``S`` can enable it.
+
+With a seed that is enabled, this preserves every reachable deadlock (Valmari): the set of
+deadlocks found is exactly the set of reachable deadlocks, so the deadlock verdict and the
+deadlock count are exact. Counterexamples are shortest in the reduced graph only.
+
+Safeness. Let ``φ(m)``: some enabled ``t`` would put a token into a marked place ``p ∈
+post(t) \\ pre(t)``. Every explored marking is tested for ``φ`` over *all* its enabled
+transitions. To make sure a marking with ``φ`` is explored whenever one is reachable, ``S``
+also contains an *up-set*: for every place ``p`` not already proved safe by a place invariant
+and every producer ``t`` of ``p``, the producers of one unmarked place of ``{p} + pre(t)`` (one
+of them must fire before ``φ`` can hold for ``(t, p)``). Proof sketch: take a shortest path from
+``m`` to a ``φ``-marking; it contains a transition of ``S`` (up-set); the first one, ``u``,
+commutes to the front (D1), and ``m[u>`` is explored and strictly closer. All markings on a
+shortest such path are safe, so the bitset semantics is exact along it. When the invariants
+cover every place the up-set is empty and the reduction is as strong as for deadlocks alone.
+
+Choosing the set: an enabled transition in conflict with no other one is a stubborn set on its
+own (most plumbing transitions of a layered net are); otherwise up to ``_MAX_SEEDS`` enabled
+seeds are grown and the set with the fewest enabled transitions wins, each growth abandoned
+as soon as it cannot beat the best so far. Subsystems interacting only through fusion places
+get independent sets this way: the closure stops at the channel places.
+
+Enabled sets are maintained incrementally: firing ``t`` can only disable the consumers of the
+places it empties and can only enable the consumers of the places it fills.
+
+Progress (``for_progress``): the reduced graph can also decide the progress property of
+``progress.py`` when it satisfies the *cycle proviso*: every cycle of the reduced graph contains
+a fully expanded marking. It is enforced after the search rather than during it (a per-state
+test such as "a successor is already known" expands far too much in cyclic controllers): when
+the queue is empty, the strongly connected components of the subgraph of partly expanded
+markings are computed, one marking of each component carrying a cycle is expanded fully, the
+search resumes on what that adds, and so on until no cycle avoids a fully expanded marking.
+With D1, D2 and the proviso, for every explored marking ``y``:
+
+* a firing sequence from ``y`` to a deadlock exists in the full graph iff one exists in the
+  reduced graph (deadlock preservation, D2 alone);
+* a firing sequence from ``y`` that fires transition ``u`` (an ITERATION of ``s``) exists in
+  the full graph iff one exists in the reduced graph: move the first stubborn transition of the
+  full sequence to the front (D1), or fire a key transition first when it has none (D2); the
+  remaining length decreases at every fully expanded marking, and an infinite run of key
+  transitions would close a cycle of the reduced graph, which has a fully expanded marking;
+* if some reachable marking can reach neither a deadlock nor an ITERATION of ``s``, the same
+  argument leads to an explored marking that can reach neither (the property is preserved
+  by firing more transitions).
+
+So a loss of progress found in the reduced graph is real, and one exists in the full graph
+only if one is found, with one caveat: "s is not finished" is judged at the explored marking,
+which may lie a few extra firings later than the full graph's one (if those firings can finish
+``s`` without an iteration, the violation is missed). Dead transitions and unreachable
+behaviours are not preserved (they would need every transition visible).
+
+With ``reduce=False`` the same search fires every enabled transition: a plain Python
+reference explorer for the tests.
+"""
+
+from __future__ import annotations
+
+import time
+from collections import deque
+
+import numpy as np
+
+from rssm_dsl.verify.netbits import NetBits, bits, to_words
+from rssm_dsl.verify.statespace import Graph, Progress, ProgressCallback, SearchResult, Trace
+
+_MAX_SEEDS = 8
+
+
+class StubbornExplorer:
+    """Stubborn-set breadth-first search over int markings."""
+
+    def __init__(self, net_bits: NetBits, safe_places: int = 0, reduce: bool = True,
+                 proviso: bool = False) -> None:
+        nb = net_bits
+        self.nb = nb
+        self.reduce = reduce
+        self.proviso = proviso
+        self.pre = nb.pre
+        self.post = nb.post
+        self.produce = nb.produce
+        self.conflict = nb.conflict
+        self.producers = nb.producers
+        # firing t may disable the consumers of what it empties, may enable those of what it fills
+        self.disable = [0] * nb.ntrans
+        self.wake = [0] * nb.ntrans
+        for t in range(nb.ntrans):
+            for p in bits(nb.consume[t]):
+                self.disable[t] |= nb.consumers[p]
+            for p in bits(nb.produce[t]):
+                self.wake[t] |= nb.consumers[p]
+        # the up-set is needed only for places the invariants did not prove safe
+        all_places = (1 << nb.nplaces) - 1
+        self.watched: list[tuple[int, int, list[int]]] = []   # (place, its bit, producers)
+        for p in bits(all_places & ~safe_places):
+            if nb.producers[p]:
+                self.watched.append((p, 1 << p, bits(nb.producers[p])))
+        self.lonely = 0             # transitions sharing no input place with another one
+        for t in range(nb.ntrans):
+            if nb.conflict[t] == 1 << t:
+                self.lonely |= 1 << t
+
+    def initial_enabled(self, m: int) -> int:
+        en = 0
+        for t, pre in enumerate(self.pre):
+            if m & pre == pre:
+                en |= 1 << t
+        return en
+
+    def successor_enabled(self, m2: int, en: int, t: int) -> int:
+        en &= ~self.disable[t]
+        pre = self.pre
+        for u in bits(self.wake[t] & ~en):
+            if m2 & pre[u] == pre[u]:
+                en |= 1 << u
+        return en
+
+    def up_set(self, m: int) -> int:
+        up = 0
+        pre, producers = self.pre, self.producers
+        for p, pbit, makers in self.watched:
+            if not m & pbit:
+                up |= producers[p]
+                continue
+            for t in makers:
+                missing = pre[t] & ~m
+                if missing:     # t disabled (enabled would be an unsafe firing, found first)
+                    low = missing & -missing
+                    up |= producers[low.bit_length() - 1]
+        return up
+
+    def closure(self, m: int, seed: int, en: int, limit: int) -> int | None:
+        """The stubborn set grown from ``seed``, or None once it has ``limit`` enabled
+        transitions (it cannot beat the best set found so far)."""
+        pre, conflict, producers = self.pre, self.conflict, self.producers
+        s = seed
+        work = seed
+        count = (seed & en).bit_count()
+        if count >= limit:
+            return None
+        while work:
+            low = work & -work
+            work ^= low
+            t = low.bit_length() - 1
+            missing = pre[t] & ~m
+            if not missing:
+                add = conflict[t]
+            elif missing & (missing - 1) == 0:
+                add = producers[missing.bit_length() - 1]
+            else:       # several unmarked inputs: the one bringing the fewest new transitions
+                add = -1
+                best = -1
+                for q in bits(missing):
+                    extra = (producers[q] & ~s).bit_count()
+                    if best < 0 or extra < best:
+                        best, add = extra, producers[q]
+                        if extra == 0:
+                            break
+            new = add & ~s
+            if new:
+                s |= new
+                work |= new
+                count += (new & en).bit_count()
+                if count >= limit:
+                    return None
+        return s
+
+    def stubborn(self, m: int, en: int) -> int:
+        """The enabled transitions of a small stubborn set of ``m`` (``en`` != 0)."""
+        if not self.reduce or en & (en - 1) == 0:
+            return en
+        up = self.up_set(m) if self.watched else 0
+        if not up:
+            lonely = en & self.lonely
+            if lonely:              # enabled and in conflict with nothing: a stubborn set alone
+                return lonely & -lonely
+        best = en
+        best_count = en.bit_count()
+        for tried, t in enumerate(bits(en)):
+            if tried >= _MAX_SEEDS:
+                break
+            found = self.closure(m, (1 << t) | up, en, best_count)
+            if found is not None:
+                best = found & en
+                best_count = best.bit_count()
+                if best_count == 1:
+                    break
+        return best
+
+    def explore(
+        self,
+        max_states: int = 5_000_000,
+        time_limit: float | None = None,
+        max_counterexamples: int = 3,
+        progress: ProgressCallback | None = None,
+        keep_graph: bool = False,
+    ) -> SearchResult:
+        start = time.monotonic()
+        deadline = None if time_limit is None else start + time_limit
+        nb = self.nb
+        pre, post, produce = self.pre, self.post, self.produce
+        proviso = self.proviso and self.reduce
+        keep_graph = keep_graph or proviso
+        m0 = nb.initial
+        en0 = self.initial_enabled(m0)
+        index: dict[int, int] = {m0: 0}
+        parent: list[int] = [-1]
+        via: list[int] = [-1]
+        markings: list[int] = [m0]
+        enabled_of: list[int] = [en0]        # kept for the proviso's re-expansions
+        fired_of: list[int] = [0]
+        queue: deque[tuple[int, int, int]] = deque([(m0, en0, 0)])
+        depth_of: list[int] = [0]
+        deadlocks: list[int] = []
+        final_deadlocks = 0
+        unsafe: tuple[int, int, int] | None = None
+        stopped: str | None = None
+        last_report = 0.0
+        count = 0
+        e_src: list[int] = []
+        e_dst: list[int] = []
+        e_trans: list[int] = []
+        full_expansions = 0
+
+        def expand(i: int, m: int, en: int, fire: int) -> int:
+            """Fire ``fire`` in marking ``m`` (state ``i``); the number of firings."""
+            for t in bits(fire):
+                m2 = (m & ~pre[t]) | post[t]
+                k = index.get(m2)
+                if k is None:
+                    k = len(markings)
+                    index[m2] = k
+                    markings.append(m2)
+                    parent.append(i)
+                    via.append(t)
+                    depth_of.append(depth_of[i] + 1)
+                    en2 = self.successor_enabled(m2, en, t)
+                    if proviso:
+                        enabled_of.append(en2)
+                        fired_of.append(0)
+                    queue.append((m2, en2, k))
+                if keep_graph:
+                    e_src.append(i)
+                    e_dst.append(k)
+                    e_trans.append(t)
+            return fire.bit_count()
+
+        edges = 0
+        while True:
+            while queue:
+                m, en, i = queue.popleft()
+                count += 1
+                if en == 0:
+                    if nb.is_final(m):
+                        final_deadlocks += 1
+                    else:
+                        deadlocks.append(i)
+                    continue
+                for t in bits(en):
+                    clash = m & produce[t]
+                    if clash:
+                        unsafe = (i, t, clash)
+                        break
+                if unsafe is not None:
+                    stopped = "stopped at the first unsafe firing"
+                    break
+                fire = self.stubborn(m, en)
+                if proviso:
+                    fired_of[i] = fire
+                edges += expand(i, m, en, fire)
+                if count & 1023 == 0:
+                    if len(markings) > max_states:
+                        stopped = f"state limit of {max_states} states reached"
+                        break
+                    now = time.monotonic()
+                    if deadline is not None and now > deadline:
+                        stopped = f"time limit of {time_limit} s reached"
+                        break
+                    if progress is not None and now - last_report > 0.5:
+                        last_report = now
+                        progress(Progress(len(markings), edges, depth_of[i], len(queue),
+                                          now - start,
+                                          "stubborn" if self.reduce else "python"))
+            if stopped is not None or not proviso:
+                break
+            # cycle proviso: every cycle of partly expanded markings gets one expanded fully
+            breakers = _cycle_breakers(len(markings), e_src, e_dst,
+                                       [fired_of[v] != enabled_of[v]
+                                        for v in range(len(markings))])
+            if not breakers:
+                break
+            for v in breakers:
+                rest = enabled_of[v] & ~fired_of[v]
+                fired_of[v] = enabled_of[v]
+                full_expansions += 1
+                edges += expand(v, markings[v], enabled_of[v], rest)
+
+        def path(k: int) -> tuple[int, ...]:
+            steps: list[int] = []
+            while k > 0:
+                steps.append(via[k])
+                k = parent[k]
+            return tuple(reversed(steps))
+
+        traces = [Trace(path(k), markings[k]) for k in deadlocks[:max_counterexamples]]
+        unsafe_trace = None
+        if unsafe is not None:
+            k, t, clash = unsafe
+            unsafe_trace = Trace((*path(k), t), markings[k], t, clash)
+        graph = None
+        if keep_graph and stopped is None:
+            nw = nb.nwords
+            states = np.array([to_words(x, nw) for x in markings],
+                              dtype=np.uint64).reshape(len(markings), nw)
+            graph = Graph(
+                states=states, parent=np.array(parent, dtype=np.int32),
+                via=np.array(via, dtype=np.int32), src=np.array(e_src, dtype=np.int32),
+                dst=np.array(e_dst, dtype=np.int32), trans=np.array(e_trans, dtype=np.int32))
+        return SearchResult(
+            method="stubborn" if self.reduce else "python", states=len(markings),
+            edges=edges,
+            depth=max(depth_of), complete=stopped is None, stopped=stopped,
+            seconds=time.monotonic() - start, deadlocks=traces, deadlock_count=len(deadlocks),
+            final_deadlock_count=final_deadlocks, unsafe=unsafe_trace, graph=graph,
+            full_expansions=full_expansions,
+        )
+
+
+def _cycle_breakers(n: int, src: list[int], dst: list[int], partial: list[bool]) -> list[int]:
+    """One marking per cycle-carrying strongly connected component of the subgraph of partly
+    expanded markings (iterative Tarjan)."""
+    succ: list[list[int]] = [[] for _ in range(n)]
+    selfloop = [False] * n
+    for a, b in zip(src, dst, strict=True):
+        if partial[a] and partial[b]:
+            if a == b:
+                selfloop[a] = True
+            else:
+                succ[a].append(b)
+    index = [-1] * n
+    low = [0] * n
+    on_stack = [False] * n
+    stack: list[int] = []
+    breakers: list[int] = []
+    counter = 0
+    for root in range(n):
+        if not partial[root] or index[root] >= 0:
+            continue
+        work = [(root, 0)]
+        index[root] = low[root] = counter
+        counter += 1
+        stack.append(root)
+        on_stack[root] = True
+        while work:
+            v, k = work[-1]
+            if k < len(succ[v]):
+                work[-1] = (v, k + 1)
+                w = succ[v][k]
+                if index[w] < 0:
+                    index[w] = low[w] = counter
+                    counter += 1
+                    stack.append(w)
+                    on_stack[w] = True
+                    work.append((w, 0))
+                elif on_stack[w]:
+                    low[v] = min(low[v], index[w])
+                continue
+            work.pop()
+            if work:
+                u = work[-1][0]
+                low[u] = min(low[u], low[v])
+            if low[v] == index[v]:
+                members = []
+                while True:
+                    w = stack.pop()
+                    on_stack[w] = False
+                    members.append(w)
+                    if w == v:
+                        break
+                if len(members) > 1 or selfloop[v]:
+                    breakers.append(min(members))
+    return breakers
+
+
+def explore_reduced(
+    net_bits: NetBits,
+    safe_places: int = 0,
+    max_states: int = 5_000_000,
+    time_limit: float | None = None,
+    max_counterexamples: int = 3,
+    progress: ProgressCallback | None = None,
+    reduce: bool = True,
+    for_progress: bool = False,
+) -> SearchResult:
+    """Deadlocks and safeness by stubborn-set search (see the module docstring).
+
+    ``safe_places`` is the mask of places already proved safe (by place invariants). With
+    ``for_progress`` the cycle proviso is applied and the reduced graph is kept, for the
+    progress check (``progress.check_progress`` runs on it unchanged).
+    """
+    explorer = StubbornExplorer(net_bits, safe_places, reduce, proviso=for_progress)
+    return explorer.explore(max_states, time_limit, max_counterexamples, progress,
+                            keep_graph=for_progress)

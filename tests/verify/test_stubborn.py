@@ -1,0 +1,124 @@
+from __future__ import annotations
+
+import pytest
+from hypothesis import given, settings
+from hypothesis import strategies as st
+from netkit import (
+    NetBuilder,
+    hpn_like,
+    mode_pair,
+    pipeline_ring,
+    random_product,
+    ring,
+    send_send_deadlock,
+    terminating_pipeline,
+    unsafe_net,
+)
+
+from rssm_dsl.hpn.flat import FlatNet
+from rssm_dsl.verify.invariants import place_invariants
+from rssm_dsl.verify.netbits import NetBits, to_mask
+from rssm_dsl.verify.statespace import explore_full
+from rssm_dsl.verify.stubborn import explore_reduced
+
+
+def deadlock_set(net: FlatNet, reduced: bool, safe: int = 0) -> tuple[set[int], int, bool]:
+    nb = NetBits.of(net)
+    if reduced:
+        r = explore_reduced(nb, safe, max_counterexamples=10**6)
+    else:
+        r = explore_full(nb, max_counterexamples=10**6)
+    return {d.marking for d in r.deadlocks}, r.states, r.unsafe is not None
+
+
+def check_same_verdicts(net: FlatNet) -> None:
+    nb = NetBits.of(net)
+    full = explore_full(nb, max_counterexamples=10**6)
+    inv = place_invariants(net)
+    for safe in (0, to_mask(inv.safe_places)):
+        red = explore_reduced(nb, safe, max_counterexamples=10**6)
+        assert (red.unsafe is None) == (full.unsafe is None), "safeness verdict differs"
+        if full.unsafe is None:
+            # deadlocks are preserved exactly: the same set of markings
+            assert {d.marking for d in red.deadlocks} == {d.marking for d in full.deadlocks}
+            assert red.deadlock_count == full.deadlock_count
+            assert red.final_deadlock_count == full.final_deadlock_count
+            assert red.states <= full.states
+            assert red.complete
+        else:
+            assert red.unsafe is not None
+            # the counterexample replays to an unsafe firing
+            m = nb.initial
+            for t in red.unsafe.steps[:-1]:
+                assert m & nb.pre[t] == nb.pre[t] and not m & nb.produce[t]
+                m = nb.fire(m, t)
+            last = red.unsafe.steps[-1]
+            assert m & nb.pre[last] == nb.pre[last] and m & nb.produce[last]
+
+
+@pytest.mark.parametrize("net", [
+    mode_pair(True, True), mode_pair(False, False), send_send_deadlock(),
+    send_send_deadlock(True), terminating_pipeline(4), unsafe_net(), ring(5), ring(7),
+    pipeline_ring(6, "BB"), pipeline_ring(5, "NN"), pipeline_ring(4, "BN"),
+    hpn_like(2, 2, 2), hpn_like(3, 2, 2, producer_blocking=True),
+    hpn_like(3, 2, 2, finish=True),
+], ids=lambda n: n.system)
+def test_reduced_and_full_agree(net: FlatNet) -> None:
+    check_same_verdicts(net)
+
+
+@pytest.mark.parametrize("seed", range(150))
+def test_reduced_and_full_agree_random(seed: int) -> None:
+    net = random_product(seed, machines=2 + seed % 3, states=3 + seed % 3,
+                         shared=1 + seed % 3, raw=0.3 if seed % 3 == 0 else 0.0,
+                         final=seed % 4 == 0)
+    check_same_verdicts(net)
+
+
+@settings(max_examples=60, deadline=None)
+@given(seed=st.integers(0, 10**6), machines=st.integers(1, 5), states=st.integers(2, 5),
+       shared=st.integers(0, 4), sync=st.sampled_from([0.3, 0.7, 1.0]),
+       raw=st.sampled_from([0.0, 0.2, 0.5]), final=st.booleans())
+def test_reduced_and_full_agree_hypothesis(seed: int, machines: int, states: int, shared: int,
+                                           sync: float, raw: float, final: bool) -> None:
+    check_same_verdicts(random_product(seed, machines, states, shared, sync, raw, final))
+
+
+def test_reduction_is_effective_on_independent_work() -> None:
+    nb = NetBits.of(pipeline_ring(8, "BB"))
+    inv = place_invariants(nb.net)
+    red = explore_reduced(nb, to_mask(inv.safe_places))
+    full = explore_full(nb, keep_graph=False)
+    assert red.deadlock_count == full.deadlock_count == 0
+    assert full.states == 118098 and red.states < 200
+
+
+def test_philosophers_deadlock_found_with_few_states() -> None:
+    net = ring(10)
+    nb = NetBits.of(net)
+    red = explore_reduced(nb, to_mask(place_invariants(net).safe_places))
+    assert red.deadlock_count == 1
+    assert len(red.deadlocks[0].steps) == 10         # everybody took the left fork
+    assert red.states < explore_full(nb, keep_graph=False).states / 10
+
+
+def test_unsafe_found_through_the_up_set() -> None:
+    # the doubled place is reachable only after independent work elsewhere
+    b = NetBuilder("upset")
+    b.place("s", marked=True)
+    b.place("w0", marked=True)
+    for i in range(6):
+        b.transition(f"work{i}", [f"w{i}"], [f"w{i + 1}"])
+    b.transition("fork", ["s"], ["a", "c"])
+    b.transition("ta", ["a"], ["x"])
+    b.transition("tc", ["c"], ["d"])
+    b.transition("td", ["d"], ["x"])
+    net = b.build()
+    check_same_verdicts(net)
+    nb = NetBits.of(net)
+    assert explore_reduced(nb).unsafe is not None
+
+
+def test_python_explorer_without_reduction_counts_every_state() -> None:
+    nb = NetBits.of(ring(5))
+    assert explore_reduced(nb, reduce=False).states == explore_full(nb).states
