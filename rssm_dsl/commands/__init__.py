@@ -3,6 +3,7 @@ Add a command by adding its module name (one line)."""
 
 COMMANDS: tuple[str, ...] = (
     "compile",
+    "verify",
     "simulate",
     "render",
 )
