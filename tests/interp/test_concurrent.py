@@ -20,7 +20,7 @@ def test_concurrent_run_fires_only_enabled_transitions(tmp_path: Path) -> None:
     assert comp.hpn is not None
     nb = NetBits.of(flatten(comp.hpn))
     rt = runtime(comp, RunConfig(base_dir=tmp_path, wall_clock=True))
-    sim = Simulator(rt, SimOptions(mode="concurrent", until=0.4, record_markings=True,
+    sim = Simulator(rt, SimOptions(mode="concurrent", until=1.0, record_markings=True,
                                    workers=3))
     result = sim.run()
     assert result.reason == "until", result.message
@@ -30,7 +30,8 @@ def test_concurrent_run_fires_only_enabled_transitions(tmp_path: Path) -> None:
                   and nb.fire(a, t) == b), None)
         assert t is not None, "a step that is not a firing of the net"
     c = rt.subsystems["a1.c"]
-    assert 3 <= c.i <= 14              # 30 Hz for 0.4 s of wall clock (loaded machines lag)
+    # paced at 30 Hz for 1 s of wall clock: never ahead of the clock; a loaded machine lags
+    assert 1 <= c.i <= 31
 
 
 def test_operations_run_in_worker_threads(tmp_path: Path) -> None:
