@@ -12,7 +12,6 @@ import sys
 import traceback
 from collections.abc import Callable
 from enum import Enum
-from pathlib import Path
 from typing import Annotated, TypeVar
 
 import typer
@@ -56,7 +55,7 @@ def guarded(fn: Callable[[], int]) -> None:
         code = fn()
     except (typer.Exit, KeyboardInterrupt):
         raise
-    except Exception as e:  # noqa: BLE001 - the last line of defence: never a raw traceback
+    except Exception as e:
         typer.echo(f"rssmc: internal error [E900]: {type(e).__name__}: {e}", err=True)
         typer.echo("  help: this is a bug in rssmc; please report it with the input file"
                    " (set RSSMC_DEBUG=1 for the traceback)", err=True)

@@ -106,6 +106,11 @@ CODES: tuple[Code, ...] = (
     # ROS 2 packages (rssmc ros2)
     Code("E860", "not-a-ros-name", _E, "a name of the specification cannot become a ROS 2 or Python name"),
     Code("W861", "module-not-shipped", _W, "a binding's module is not shipped in the ROS 2 workspace"),
+    # the LWR4+ experiment (rssmc run)
+    Code("E870", "run-no-lwr4", _E, "the system lacks the LWR4+ device, its effector or the set points the experiment measures"),
+    Code("E871", "run-option-unsupported", _E, "an option of `rssmc run` that the specification cannot honour"),
+    Code("W872", "viewer-unavailable", _W, "the MuJoCo viewer cannot open (no display): the run goes on headless"),
+    Code("W873", "video-unavailable", _W, "the video cannot be rendered or encoded here"),
     # internal
     Code("E900", "internal-error", _E, "the compiler failed: please report it"),
 )

@@ -34,11 +34,11 @@ def flat_pnml(net: FlatNet) -> str:
         ET.SubElement(xt, "toolspecific", tool="rssmc", version="1").text = t.label
     n = 0
     for t in net.transitions:
-        for p in t.pre:
-            ET.SubElement(page, "arc", id=f"a{n}", source=f"p{p}", target=f"t{t.index}")
+        for src in t.pre:
+            ET.SubElement(page, "arc", id=f"a{n}", source=f"p{src}", target=f"t{t.index}")
             n += 1
-        for p in t.post:
-            ET.SubElement(page, "arc", id=f"a{n}", source=f"t{t.index}", target=f"p{p}")
+        for dst in t.post:
+            ET.SubElement(page, "arc", id=f"a{n}", source=f"t{t.index}", target=f"p{dst}")
             n += 1
     ET.indent(root)
     return '<?xml version="1.0" encoding="UTF-8"?>\n' + ET.tostring(root, encoding="unicode") + "\n"

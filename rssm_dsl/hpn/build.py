@@ -15,13 +15,31 @@ from dataclasses import dataclass, field
 from rssm_dsl.hpn import names as N
 from rssm_dsl.hpn.flat import Role
 from rssm_dsl.hpn.ir import (
-    HPN, Arc, CondKind, Condition, FusionSet, OpKind, Operation, Page, PageKind, Place,
+    HPN,
+    Arc,
+    Condition,
+    CondKind,
+    FusionSet,
+    Operation,
+    OpKind,
+    Page,
+    PageKind,
+    Place,
     Transition,
 )
 from rssm_dsl.semantics.behaviours import combination_text
 from rssm_dsl.semantics.model import (
-    ArrLeaf, ArrPar, Arrangement, ArrSeq, Behaviour, Buffer, Channel, Device, PartialFunction,
-    Subsystem, System,
+    Arrangement,
+    ArrLeaf,
+    ArrPar,
+    ArrSeq,
+    Behaviour,
+    Buffer,
+    Channel,
+    Device,
+    PartialFunction,
+    Subsystem,
+    System,
 )
 from rssm_dsl.source import Span
 from rssm_dsl.syntax import ast
@@ -376,8 +394,10 @@ class HpnBuilder:
 
     # ------------------------------------------------------------------ fusion sets
     def _fusions(self) -> None:
-        by_id = {s.id: s for s in self.s.subsystems()} | {d.id: d for d in self.s.devices()}
-        j_of = {x.id: a.designator for a in self.s.agents for x in (*a.subsystems, *a.devices)}
+        by_id: dict[str, Subsystem | Device] = {s.id: s for s in self.s.subsystems()}
+        by_id.update({d.id: d for d in self.s.devices()})
+        j_of = {x: a.designator for a in self.s.agents
+                for x in [s.id for s in a.subsystems] + [d.id for d in a.devices]}
         for ch in self.s.channels:
             prod, cons = by_id[ch.producer.owner], by_id[ch.consumer.owner]
             rho = [b.name for b in prod.outputs].index(ch.producer.name) + 1

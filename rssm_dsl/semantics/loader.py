@@ -132,7 +132,7 @@ class Loader:
                 continue
             tkey = target.resolve()
             if tkey in self._stack:
-                cycle = self._stack[self._stack.index(tkey):] + [tkey]
+                cycle = [*self._stack[self._stack.index(tkey):], tkey]
                 names = " -> ".join(display_path(p) for p in cycle)
                 self.bag.error("E010", f"import cycle: {names}", imp.span,
                                "move the shared declarations into a module both can import")

@@ -7,11 +7,9 @@ recurse over expressions, never hit Python's recursion limit."""
 
 from __future__ import annotations
 
-from collections.abc import Callable
-from typing import Any
-
 import threading
 from dataclasses import dataclass
+from typing import Any, TypeVar
 
 from lark import Token
 
@@ -19,6 +17,7 @@ from rssm_dsl.source import SourceFile, Span
 from rssm_dsl.syntax import ast
 
 MAX_DEPTH = 64
+N = TypeVar("N")
 
 
 @dataclass(frozen=True, slots=True)
@@ -106,8 +105,9 @@ class AstBuilder:
         if tok.line is None or tok.start_pos is None:
             start = tok.start_pos or 0
             return self.source.span(start, tok.end_pos if tok.end_pos is not None else start)
-        return Span(self.source.path, tok.line, tok.column, tok.end_line or tok.line,
-                    tok.end_column or tok.column, tok.start_pos, tok.end_pos or tok.start_pos)
+        column = tok.column or 1
+        return Span(self.source.path, tok.line, column, tok.end_line or tok.line,
+                    tok.end_column or column, tok.start_pos, tok.end_pos or tok.start_pos)
 
     def _span_of(self, c: Any) -> Span | None:
         if isinstance(c, Token):
@@ -134,7 +134,7 @@ class AstBuilder:
             return self.source.span(0, 0)
         return first.to(last)
 
-    def _deep(self, node: Any, children: list[Any], span: Span) -> Any:
+    def _deep(self, node: N, children: list[Any], span: Span) -> N:
         depth = 1 + max((self._depth.get(id(c), 0) for c in children), default=0)
         if depth > MAX_DEPTH:
             raise NestingTooDeep(span, MAX_DEPTH)
@@ -383,8 +383,8 @@ class AstBuilder:
                 stream.append(_Operand(item.operand))
             else:
                 stream.append(_Operand(item))
-        climber = _Climber(self, stream)
-        return climber.parse(0)
+        result: ast.Expr = _Climber(self, stream).parse(0)
+        return result
 
     def r_prefixed(self, t: _Node, k: list[Any]) -> _Prefixed:
         # only operator tokens precede the operand (error recovery may leave other debris)

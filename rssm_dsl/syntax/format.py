@@ -11,7 +11,8 @@ tokens again with canonical layout:
   before every declaration or statement; other line breaks are the writer's;
 - at most one blank line in a row, none at the start or end of a block or file;
 - canonical spacing between tokens (`a := f(x, y)`, `e.lwr`, `-x`, `float[3]`, `{a: 1}`);
-- every comment kept, in place; a block comment is copied verbatim.
+- every comment kept, in place; a block comment is copied verbatim; the `//` comments that
+  end consecutive lines of code are aligned, two spaces after the longest line.
 
 Only whitespace changes: the output is checked to lex to the same tokens and to parse
 without errors, so formatting never changes the meaning (or the IR) of a specification.
@@ -95,14 +96,26 @@ class _Printer:
     cur: list[str] = field(default_factory=list)
     col: int = 0
     line_indent: int = 0
+    comment: str | None = None              # the trailing // comment of the current line
+    trailing: dict[int, str] = field(default_factory=dict)   # line -> its trailing comment
+
+    def _end_line(self) -> None:
+        if self.comment is not None:
+            self.trailing[len(self.lines)] = self.comment
+            self.comment = None
+        self.lines.append("".join(self.cur).rstrip())
 
     def newline(self, blank: bool, indent: int) -> None:
-        self.lines.append("".join(self.cur).rstrip())
+        self._end_line()
         if blank:
             self.lines.append("")
         self.cur = [" " * indent]
         self.col = indent
         self.line_indent = indent
+
+    def trail(self, comment: str) -> None:
+        """A // comment after code: aligned with those of the next and previous lines."""
+        self.comment = comment
 
     def put(self, text: str) -> None:
         self.cur.append(text)
@@ -110,7 +123,19 @@ class _Printer:
         self.col = len(text) - nl - 1 if nl >= 0 else self.col + len(text)
 
     def text(self) -> str:
-        self.lines.append("".join(self.cur).rstrip())
+        self._end_line()
+        n = 0
+        rows = sorted(self.trailing)
+        while n < len(rows):          # runs of consecutive lines with trailing comments
+            run = [rows[n]]
+            while n + 1 < len(rows) and rows[n + 1] == run[-1] + 1:
+                n += 1
+                run.append(rows[n])
+            n += 1
+            width = max(len(self.lines[i].rsplit("\n", 1)[-1]) for i in run)
+            for i in run:
+                last = len(self.lines[i].rsplit("\n", 1)[-1])
+                self.lines[i] += " " * (width - last + 2) + self.trailing[i]
         while self.lines and not self.lines[-1]:
             self.lines.pop()
         return "\n".join(self.lines) + "\n" if self.lines else ""
@@ -246,6 +271,10 @@ class _Formatter:
             blank = (newlines >= 2 and self.prev_kind != "block{" and not closing_block)
             self.p.newline(blank, self._indent(tok, statement))
         elif self.prev is not None:
+            if tok.type == "COMMENT":
+                self.pending_align = None
+                self.p.trail(value)
+                return self._after(tok, unary_prev)
             self.p.put(self._space(tok, unary_prev))
             if self.pending_align is not None and tok.type not in _COMMENTS:
                 self.pending_align.align = self.p.col
@@ -261,10 +290,10 @@ class _Formatter:
         if tok.type in _COMMENTS:
             self.prev = tok
             return False
-        if value in _DECL_START and tok.type != "NAME" and not self.brackets:
-            if not (value in _AFTER and self.prev_sig is not None
-                    and str(self.prev_sig) in _AFTER[value]):
-                self.decl_kw = value
+        if value in _DECL_START and tok.type != "NAME" and not self.brackets and not (
+                value in _AFTER and self.prev_sig is not None
+                and str(self.prev_sig) in _AFTER[value]):
+            self.decl_kw = value
         block = self.blocks[-1] if self.blocks else None
         if block is not None and self._is_label(tok):
             block.label_pending = True

@@ -10,7 +10,6 @@ from __future__ import annotations
 
 from dataclasses import dataclass
 from functools import cache
-
 from typing import Any
 
 from lark import Lark, Token
@@ -94,7 +93,7 @@ def _expected(names: set[str]) -> str:
     if not shown:
         return "nothing more"
     if len(shown) > 8:
-        shown = shown[:8] + ["…"]
+        shown = [*shown[:8], "…"]
     return "one of " + ", ".join(shown) if len(shown) > 1 else shown[0]
 
 
@@ -148,7 +147,7 @@ class _Driver:
                 # the contextual lexer found a token this state does not accept
                 self._feed(ip, e.token)
             except UnexpectedCharacters as e:
-                pos = e.pos_in_stream
+                pos = e.pos_in_stream or 0
                 char = self.source.text[pos]
                 self._report(
                     "E006", f"unexpected character {char!r} (U+{ord(char):04X})",
@@ -171,7 +170,7 @@ class _Driver:
             try:
                 trial.feed_token(Token(term, text))
                 trial.feed_token(tok)
-            except Exception:  # noqa: BLE001 - any failure of a trial only rejects the repair
+            except Exception:
                 continue
             if text in _CLOSERS:
                 message, hint = f"missing '{text}' before {_describe(tok)}", f"insert '{text}'"

@@ -87,7 +87,7 @@ def test_fig13_fig14_send_arrangements_one_nonblocking_page(hpn: HPN) -> None:
 
 
 def test_fig15_receive_arrangement_is_sequential(hpn: HPN) -> None:
-    places, transitions, pages = net(hpn, "P^B[1,lwr,move,rcv]")
+    _places, transitions, pages = net(hpn, "P^B[1,lwr,move,rcv]")
     assert pages == {"P^B[1,lwr,move,rcv,1]", "P^B[1,lwr,move,rcv,2]"}
     arcs = {(a.source, a.target) for a in hpn.arcs if a.page == "P^B[1,lwr,move,rcv]"}
     middle = [t for t in transitions if ("P^B[1,lwr,move,rcv,1]", t) in arcs]
@@ -100,7 +100,7 @@ def test_fig16_canonical_decomposition_and_data_availability(hpn: HPN) -> None:
     assert net(hpn, "P^f[1,lwr,move]")[2] == {"P^f[1,lwr,move,1]", "P^f[1,lwr,move,2]"}
     # mu + 1 = 2 partial functions (torque, memory), each with 2^nu = 4 cases (Eq. 5)
     for psi in (1, 2):
-        places, transitions, _ = net(hpn, f"P^f[1,lwr,move,{psi}]")
+        places, _transitions, _ = net(hpn, f"P^f[1,lwr,move,{psi}]")
         assert len([p for p in places if not p.endswith(("in]", "out]"))]) == 4
     conds = [hpn.transitions[f"t[1,lwr,move,1,{w}]"].condition for w in range(1, 5)]
     assert [c.new if c else None for c in conds] == [
