@@ -6,4 +6,7 @@ COMMANDS: tuple[str, ...] = (
     "verify",
     "simulate",
     "render",
+    "fmt",
+    "lsp",
+    "ros2",
 )

@@ -107,7 +107,7 @@ CODES: tuple[Code, ...] = (
     Code("E860", "not-a-ros-name", _E, "a name of the specification cannot become a ROS 2 or Python name"),
     Code("W861", "module-not-shipped", _W, "a binding's module is not shipped in the ROS 2 workspace"),
     # the LWR4+ experiment (rssmc run)
-    Code("E870", "run-no-lwr4", _E, "the system lacks the LWR4+ device, its effector or the set points the experiment measures"),
+    Code("E870", "run-no-lwr4", _E, "no LWR4+ device, effector or set points for the experiment"),
     Code("E871", "run-option-unsupported", _E, "an option of `rssmc run` that the specification cannot honour"),
     Code("W872", "viewer-unavailable", _W, "the MuJoCo viewer cannot open (no display): the run goes on headless"),
     Code("W873", "video-unavailable", _W, "the video cannot be rendered or encoded here"),

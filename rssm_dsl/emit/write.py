@@ -6,10 +6,12 @@ from __future__ import annotations
 import os
 import shutil
 import tempfile
+from collections.abc import Mapping
 from pathlib import Path
 
 
-def write_outputs(target: Path, files: dict[str, str]) -> list[Path]:
+def write_outputs(target: Path, files: Mapping[str, str | bytes]) -> list[Path]:
+    """Write ``files`` (name relative to ``target`` -> text, or bytes for binary files)."""
     target = target.resolve()
     target.parent.mkdir(parents=True, exist_ok=True)
     staging = Path(tempfile.mkdtemp(prefix=".rssmc-", dir=target.parent))
@@ -17,7 +19,10 @@ def write_outputs(target: Path, files: dict[str, str]) -> list[Path]:
         for rel, text in files.items():
             path = staging / rel
             path.parent.mkdir(parents=True, exist_ok=True)
-            path.write_text(text, encoding="utf-8")
+            if isinstance(text, bytes):
+                path.write_bytes(text)
+            else:
+                path.write_text(text, encoding="utf-8")
         target.mkdir(parents=True, exist_ok=True)
         written: list[Path] = []
         for rel in sorted(files):

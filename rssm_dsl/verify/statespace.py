@@ -92,10 +92,14 @@ class Graph:
     def forward(self) -> tuple[I64, Ints]:
         """CSR of the edges by source: (row pointers, edge ids)."""
         if self._fwd is None:
-            # edges are generated in the order of their source states: no sort needed
             ptr = np.zeros(self.size + 1, dtype=np.int64)
             np.cumsum(np.bincount(self.src, minlength=self.size), out=ptr[1:])
-            self._fwd = (ptr, np.arange(self.src.size, dtype=np.int64))
+            order: Ints
+            if self.src.size < 2 or bool((self.src[1:] >= self.src[:-1]).all()):
+                order = np.arange(self.src.size, dtype=np.int64)   # BFS order: already sorted
+            else:
+                order = np.argsort(self.src, kind="stable").astype(np.int32)
+            self._fwd = (ptr, order)
         return self._fwd
 
     def backward(self) -> tuple[I64, Ints]:

@@ -277,10 +277,10 @@ class StubbornExplorer:
                 if proviso:
                     fired_of[i] = fire
                 edges += expand(i, m, en, fire)
+                if len(markings) > max_states:
+                    stopped = f"state limit of {max_states} states reached"
+                    break
                 if count & 1023 == 0:
-                    if len(markings) > max_states:
-                        stopped = f"state limit of {max_states} states reached"
-                        break
                     now = time.monotonic()
                     if deadline is not None and now > deadline:
                         stopped = f"time limit of {time_limit} s reached"
@@ -303,6 +303,9 @@ class StubbornExplorer:
                 fired_of[v] = enabled_of[v]
                 full_expansions += 1
                 edges += expand(v, markings[v], enabled_of[v], rest)
+            if deadline is not None and time.monotonic() > deadline:
+                stopped = f"time limit of {time_limit} s reached"
+                break
 
         def path(k: int) -> tuple[int, ...]:
             steps: list[int] = []

@@ -12,8 +12,9 @@ Pipeline:
      verdicts on far fewer states; with ``check_progress`` the search applies the cycle
      proviso and keeps its graph, on which progress is decided (see ``stubborn``); dead
      transitions and unreachable behaviours are not computed (the report says so).
-   - ``"auto"`` (default): full exploration; if it hits the state limit, the stubborn-set
-     search (as for ``"on"``) takes over.
+   - ``"auto"`` (default): full exploration up to ``auto_full_states`` markings (it gives dead
+     transitions and unreachable behaviours too); beyond, the stubborn-set search (as for
+     ``"on"``, up to ``max_states``) takes over.
 3. Verdict: *violated* when any violation was found (a found deadlock or unsafe firing is real
    even if the search was cut short); *verified* when safeness, deadlock freedom and (when
    checked) progress are all established; otherwise *inconclusive*, with the reason in the
@@ -46,6 +47,7 @@ from rssm_dsl.verify.stubborn import explore_reduced
 @dataclass(frozen=True)
 class VerifyOptions:
     max_states: int = 5_000_000          # per exploration
+    auto_full_states: int = 1_000_000    # "auto": the full search's share before stubborn sets
     time_limit: float | None = 300.0     # seconds for the whole verification
     reduction: str = "auto"              # "auto", "on" (stubborn sets only), "off" (full only)
     invariants: bool = True
@@ -83,7 +85,9 @@ def verify(net: FlatNet, options: VerifyOptions | None = None) -> VerifyReport:
     full: SearchResult | None = None
     reduced: SearchResult | None = None
     if opts.reduction in ("auto", "off"):
-        full = explore_full(nb, opts.max_states, remaining(), keep_graph=opts.check_progress,
+        limit = (min(opts.max_states, opts.auto_full_states) if opts.reduction == "auto"
+                 else opts.max_states)
+        full = explore_full(nb, limit, remaining(), keep_graph=opts.check_progress,
                             max_counterexamples=opts.max_counterexamples,
                             progress=opts.on_progress)
         if full.stopped and full.unsafe is None:

@@ -11,13 +11,13 @@ import time
 
 sys.path.insert(0, os.path.dirname(__file__))
 
-from netkit import hpn_like, pipeline_ring  # noqa: E402
+from netkit import hpn_like, pipeline_ring
 
-from rssm_dsl.hpn.flat import FlatNet  # noqa: E402
-from rssm_dsl.verify import VerifyOptions, verify  # noqa: E402
-from rssm_dsl.verify.netbits import NetBits  # noqa: E402
-from rssm_dsl.verify.promela import run_spin  # noqa: E402
-from rssm_dsl.verify.statespace import explore_full  # noqa: E402
+from rssm_dsl.hpn.flat import FlatNet
+from rssm_dsl.verify import VerifyOptions, verify
+from rssm_dsl.verify.netbits import NetBits
+from rssm_dsl.verify.promela import run_spin
+from rssm_dsl.verify.statespace import explore_full
 
 
 def bench(name: str, net: FlatNet) -> None:
@@ -35,7 +35,8 @@ def bench(name: str, net: FlatNet) -> None:
           f"({full.states / explore:>9,.0f} st/s)  verify {total:6.2f} s "
           f"[{report.verdict.value}]  stubborn {red:5.2f} s ({reduced.states} st)  |  "
           f"SPIN {spin.states_stored:>9} st  compile {spin.compile_seconds:4.2f} s  "
-          f"run {spin.run_seconds:5.2f} s  (pan: {spin.rate:>9,.0f} st/s)  total {spin.total_seconds:5.2f} s [{spin.message}]", flush=True)
+          f"run {spin.run_seconds:5.2f} s  (pan: {spin.rate:>9,.0f} st/s)  "
+          f"total {spin.total_seconds:5.2f} s [{spin.message}]", flush=True)
 
 
 if __name__ == "__main__":

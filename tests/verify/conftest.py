@@ -4,6 +4,8 @@ from __future__ import annotations
 
 import os
 import sys
+from collections.abc import Callable
+from typing import Any, TypeVar
 
 import pytest
 
@@ -18,5 +20,19 @@ def _spin_missing() -> bool:
     return spin is None or cc is None
 
 
-requires_spin = pytest.mark.skipif(_spin_missing(), reason="spin or a C compiler not installed")
-requires_4ti2 = pytest.mark.skipif(find_rays() is None, reason="4ti2 (4ti2-rays) not installed")
+F = TypeVar("F", bound=Callable[..., Any])
+
+_skip_spin = pytest.mark.skipif(_spin_missing(), reason="spin or a C compiler not installed")
+_skip_4ti2 = pytest.mark.skipif(find_rays() is None, reason="4ti2 (4ti2-rays) not installed")
+
+
+def requires_spin(test: F) -> F:
+    """Runs SPIN: marked ``external``, skipped only when spin or a C compiler is missing."""
+    marked: F = pytest.mark.external(_skip_spin(test))
+    return marked
+
+
+def requires_4ti2(test: F) -> F:
+    """Runs 4ti2: marked ``external``, skipped only when 4ti2-rays is missing."""
+    marked: F = pytest.mark.external(_skip_4ti2(test))
+    return marked

@@ -83,18 +83,24 @@ def test_final_marking_verified() -> None:
 
 
 def test_state_limit_falls_back_to_stubborn_sets() -> None:
-    r = verify(pipeline_ring(8, "BB"), VerifyOptions(max_states=1000))
-    assert r.method == "full+stubborn"
-    assert r.deadlock_free is True and r.safe is True
-    assert r.progress_ok is None and r.verdict is Verdict.INCONCLUSIVE and r.exit_code == 2
+    r = verify(pipeline_ring(8, "BB"), VerifyOptions(auto_full_states=1000))
+    assert r.method == "full+stubborn" and r.states < 1000
+    assert r.deadlock_free is True and r.safe is True and r.progress_ok is True
+    assert r.verdict is Verdict.VERIFIED and r.dead_transitions is None
     assert any("state limit" in n for n in r.notes)
+    r = verify(pipeline_ring(8, "BB"), VerifyOptions(max_states=100))
+    assert r.progress_ok is None and r.verdict is Verdict.INCONCLUSIVE and r.exit_code == 2
 
 
-def test_reduction_on_without_progress() -> None:
+def test_reduction_on() -> None:
     r = verify(pipeline_ring(8, "BB"), VerifyOptions(reduction="on"))
-    assert r.method == "stubborn" and r.verdict is Verdict.VERIFIED and r.states < 200
+    assert r.method == "stubborn" and r.verdict is Verdict.VERIFIED and r.states < 1000
+    assert r.progress_ok is True
     r = verify(ring(6), VerifyOptions(reduction="on"))
     assert r.verdict is Verdict.VIOLATED and r.deadlock_count == 1
+    r = verify(send_send_deadlock(third=True), VerifyOptions(reduction="on"))
+    assert r.verdict is Verdict.VIOLATED and [c.subsystem for c in r.progress] == ["A", "B"]
+    assert r.deadlock_free is True
 
 
 def test_everything_limited_is_inconclusive() -> None:

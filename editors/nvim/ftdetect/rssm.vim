@@ -1,0 +1,2 @@
+" RSSM specifications
+autocmd BufRead,BufNewFile *.rssm setfiletype rssm

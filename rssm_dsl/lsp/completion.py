@@ -1,0 +1,140 @@
+"""Completion: keywords and the names in scope at the cursor, narrowed by the word before it
+(`from`/`to` -> peers, `:` -> types, `initial`/`->` -> behaviours, `update` -> outputs and
+memory, `send`/`receive` -> buffers, `new(` -> inputs)."""
+
+from __future__ import annotations
+
+import re
+
+from lsprotocol import types as lsp
+
+from rssm_dsl.lsp.index import SymbolIndex, block_close
+from rssm_dsl.semantics.typecheck import BUILTIN_CONSTS, BUILTIN_FUNCTIONS
+from rssm_dsl.semantics.types import SCALARS
+from rssm_dsl.syntax import ast
+from rssm_dsl.syntax.format import keywords
+
+CK = lsp.CompletionItemKind
+_TRIGGER = re.compile(r"([A-Za-z_][A-Za-z0-9_]*|->|:=|:|\(|\.)$")
+_KIND = {"buf": CK.Field, "mem": CK.Variable, "param": CK.Constant, "const": CK.Constant,
+         "extern": CK.Function, "type": CK.Struct, "beh": CK.Method, "cond": CK.Event,
+         "local": CK.Variable, "device": CK.Interface}
+
+
+def _item(label: str, kind: lsp.CompletionItemKind, detail: str | None = None,
+          sort: str = "5") -> lsp.CompletionItem:
+    return lsp.CompletionItem(label=label, kind=kind, detail=detail, sort_text=f"{sort}{label}")
+
+
+def _enclosing(module: ast.Module | None, text: str, offset: int
+               ) -> tuple[ast.SystemDecl | None, ast.AgentDecl | None, ast.SubsystemDecl | None,
+                          ast.BehaviourDecl | None]:
+    if module is None:
+        return None, None, None, None
+
+    def inside(node: ast.SystemDecl | ast.AgentDecl | ast.SubsystemDecl | ast.BehaviourDecl
+               ) -> bool:
+        start = min(node.span.offset, node.name_span.offset)
+        return start <= offset < block_close(text, node.name_span.end_offset)
+
+    for d in module.decls:
+        if isinstance(d, ast.SystemDecl) and inside(d):
+            for a in d.agents:
+                if inside(a):
+                    for s in a.subsystems:
+                        if inside(s):
+                            b = next((bd for bd in s.behaviours if inside(bd)), None)
+                            return d, a, s, b
+                    return d, a, None, None
+            return d, None, None, None
+    return None, None, None, None
+
+
+def _peers(agent: ast.AgentDecl, system: ast.SystemDecl,
+           sub: ast.SubsystemDecl) -> list[lsp.CompletionItem]:
+    from rssm_dsl.lsp.index import _DEVICE_LETTER, _KIND_LETTER
+    out: list[lsp.CompletionItem] = []
+    for s in agent.subsystems:
+        if s is sub:
+            continue
+        label = "c" if s.kind is ast.SubsystemKind.CONTROL else \
+            f"{_KIND_LETTER[s.kind.value]}.{s.name}"
+        out.append(_item(label, CK.Class, f"{s.kind.value} subsystem", "1"))
+    for d in agent.devices:
+        out.append(_item(f"{_DEVICE_LETTER[d.kind.value]}.{d.name}", CK.Interface,
+                         f"real {d.kind.value}: {d.device}", "1"))
+    if sub.kind is ast.SubsystemKind.CONTROL:
+        for other in system.agents:
+            if other is not agent:
+                out.append(_item(f"{other.name}.c", CK.Class, "control subsystem of another "
+                                 "agent", "2"))
+    return out
+
+
+def complete(module: ast.Module | None, index: SymbolIndex, text: str,
+             offset: int) -> list[lsp.CompletionItem]:
+    line_start = text.rfind("\n", 0, offset) + 1
+    before = re.sub(r"[A-Za-z_][A-Za-z0-9_]*$", "", text[line_start:offset]).rstrip()
+    m = _TRIGGER.search(before)
+    trigger = m.group(1) if m else ""
+    system, agent, sub, behaviour = _enclosing(module, text, offset)
+    items: list[lsp.CompletionItem] = []
+    if sub is not None and agent is not None and system is not None:
+        inputs = [b.name for b in sub.buffers if b.direction is ast.Direction.INPUT]
+        outputs = [b.name for b in sub.buffers if b.direction is ast.Direction.OUTPUT]
+        behaviours = [b.name for b in sub.behaviours]
+        if trigger in ("from", "to"):
+            return _peers(agent, system, sub)
+        if trigger in ("initial", "switch", "->"):
+            out = [_item(b, CK.Method, "behaviour", "1") for b in behaviours]
+            if trigger == "->":
+                out.append(_item("end", CK.Keyword, "the subsystem ends", "2"))
+            return out
+        if trigger == "update":
+            return [_item(o, CK.Field, "output buffer", "1") for o in outputs] + \
+                [_item("memory", CK.Keyword, "the memory partial function", "2")]
+        if trigger == "send":
+            return [_item(o, CK.Field, "output buffer", "1") for o in outputs]
+        if trigger == "receive":
+            return [_item(i, CK.Field, "input buffer", "1") for i in inputs]
+        if trigger == "(" and before.endswith("new("):
+            return [_item(i, CK.Field, "input buffer", "1") for i in inputs]
+        scope = index.scope_at(module.path if module else "", offset)
+        for name, key in (scope.names.items() if scope else ()):
+            d = index.definitions.get(key)
+            items.append(_item(name, _KIND.get(key.split(":")[0], CK.Variable),
+                               d.detail if d else None, "1"))
+        if behaviour is not None:
+            for c in behaviour.conditions:
+                items.append(_item(c.name, CK.Event, f"{c.kind} condition", "2"))
+        for sw in sub.switches:
+            if sw.span.offset <= offset <= sw.span.end_offset:
+                src = next((b for b in sub.behaviours if b.name == sw.source), None)
+                if src is not None:
+                    for cd in src.conditions:
+                        items.append(_item(cd.name, CK.Event,
+                                           f"{cd.kind} condition of {src.name}", "1"))
+    type_only = trigger == ":"
+    for key, d in index.definitions.items():
+        prefix = key.split(":")[0]
+        if prefix == "type" or (prefix in ("const", "extern") and not type_only):
+            items.append(_item(d.name, _KIND[prefix], d.detail, "3"))
+        elif prefix == "device":
+            items.append(_item(d.name, CK.Interface, d.detail, "3"))
+    for name in SCALARS:
+        items.append(_item(name, CK.TypeParameter, "built-in type", "3"))
+    if type_only:
+        return [i for i in items if i.kind in (CK.Struct, CK.TypeParameter, CK.Interface)]
+    for fn in BUILTIN_FUNCTIONS:
+        items.append(_item(fn, CK.Function, "built-in function", "4"))
+    for const in BUILTIN_CONSTS:
+        items.append(_item(const, CK.Constant, "built-in constant", "4"))
+    for kw in sorted(keywords()):
+        items.append(_item(kw, CK.Keyword, None, "6"))
+    seen: set[str] = set()
+    unique: list[lsp.CompletionItem] = []
+    for it in items:
+        if it.label not in seen:
+            seen.add(it.label)
+            unique.append(it)
+    return unique

@@ -1,0 +1,234 @@
+"""Hover: what a name is (its kind and type) and where it sits in the HPN, in the paper's
+notation (pages P[j], P[j,v], P^B[j,v,omega], P^f[j,v,omega,psi], transitions, fused
+places)."""
+
+from __future__ import annotations
+
+from rssm_dsl.hpn import names as N
+from rssm_dsl.lsp.index import Definition
+from rssm_dsl.semantics.behaviours import combination_text
+from rssm_dsl.semantics.model import Agent, Buffer, Channel, Device, Subsystem, System
+from rssm_dsl.semantics.types import RecordT, Type
+from rssm_dsl.syntax import ast
+
+_LETTER_TEXT = {"c": "control subsystem", "e": "virtual effector", "r": "virtual receptor",
+                "E": "real effector", "R": "real receptor"}
+
+
+def _code(text: str) -> str:
+    return f"```rssm\n{text}\n```"
+
+
+def _type(t: Type) -> str:
+    if isinstance(t, RecordT):
+        fields = ", ".join(f"{n}: {ft}" for n, ft in t.fields)
+        return f"`{t.name}` = record {{{fields}}}"
+    return f"`{t}`"
+
+
+def _split(base: str) -> tuple[str, list[str]]:
+    """'a1.e.lwr.torque' -> ('a1.e.lwr', ['torque']); 'a1.c.cw.x' -> ('a1.c', ['cw', 'x'])."""
+    parts = base.split(".")
+    n = 2 if len(parts) > 1 and parts[1] == "c" else 3
+    return ".".join(parts[:n]), parts[n:]
+
+
+class _Model:
+    def __init__(self, system: System) -> None:
+        self.system = system
+        self.agents: dict[str, Agent] = {a.name: a for a in system.agents}
+        self.subs: dict[str, Subsystem] = {s.id: s for s in system.subsystems()}
+        self.devices: dict[str, Device] = {d.id: d for d in system.devices()}
+        self.j: dict[str, str] = {s.id: a.designator for a in system.agents
+                                  for s in a.subsystems}
+        self.j.update({d.id: a.designator for a in system.agents for d in a.devices})
+
+    def owner(self, sid: str) -> Subsystem | Device | None:
+        return self.subs.get(sid) or self.devices.get(sid)
+
+
+def _v(x: Subsystem | Device) -> str:
+    return x.name if isinstance(x, Subsystem) else f"{x.letter}.{x.name}"
+
+
+def _subsystem_symbol(s: Subsystem, j: str) -> str:
+    return "c_" + j if s.letter == "c" else f"{s.letter}_{{{j},{s.name}}}"
+
+
+def _channel_text(m: _Model, ch: Channel) -> str:
+    prod, cons = m.owner(ch.producer.owner), m.owner(ch.consumer.owner)
+    if prod is None or cons is None:
+        return f"channel `{ch.id}`"
+    rho = [b.name for b in prod.outputs].index(ch.producer.name) + 1
+    kappa = [b.name for b in cons.inputs].index(ch.consumer.name) + 1
+    fused = [N.fusion((m.j[prod.id], m.j[cons.id]), (_v(prod), _v(cons)), (rho, kappa), w)
+             for w in (1, 2)]
+    return (f"channel `{ch.producer.qualified} -> {ch.consumer.qualified}` ({ch.modes}); "
+            f"fused places `{fused[0]}` (full) and `{fused[1]}` (empty)")
+
+
+def _buffer(m: _Model, owner: Subsystem | Device, name: str) -> list[str]:
+    buf: Buffer | None = next((b for b in (*owner.inputs, *owner.outputs) if b.name == name),
+                              None)
+    if buf is None:
+        return []
+    j = m.j[owner.id]
+    out = [f"type {_type(buf.type)}, mode `{buf.mode.value}`"]
+    output = buf.direction is ast.Direction.OUTPUT
+    k = [b.name for b in (owner.outputs if output else owner.inputs)].index(name) + 1
+    verb = "snd" if output else "rcv"
+    if isinstance(owner, Subsystem):
+        pages = [f"`{N.page(j, owner.name, b.name, verb, k, sup='^B')}`"
+                 for b in owner.behaviours]
+        sym = "rho" if output else "kappa"
+        out.append(f"{'send' if output else 'receive'} pages ({sym} = {k}): "
+                   + ", ".join(pages))
+    else:
+        out.append(f"{'send' if output else 'receive'} page "
+                   f"`{N.page(j, owner.name, verb, k, sup='^' + owner.letter)}` of the device net")
+    ch = m.system.channel_of(buf)
+    out.append(_channel_text(m, ch) if ch is not None else "not connected to a channel")
+    return out
+
+
+def _behaviour(m: _Model, s: Subsystem, name: str) -> list[str]:
+    b = next((x for x in s.behaviours if x.name == name), None)
+    if b is None:
+        return []
+    j, v = m.j[s.id], s.name
+    out = [f"page `{N.page(j, v, name, sup='^B')}` (behaviour layer sH^B_{{{j},{v},{name}}}) "
+           f"in `{N.page(j, v)}`"]
+    parts = ", ".join(f"`{N.page(j, v, name, f.index, sup='^f')}` ({f.target})"
+                      for f in b.functions)
+    out.append(f"transition function `{N.page(j, v, name, sup='^f')}`: mu + 1 = "
+               f"{len(b.functions)} partial functions {parts}")
+    switches = [sw for sw in s.switches if sw.source == name]
+    if switches:
+        out.append("switches: " + ", ".join(
+            f"`{N.transition(j, v, sw.index)}` -> {sw.target or 'end'}" for sw in switches))
+    if any(sw.source is None and sw.target == name for sw in s.switches):
+        out.append(f"initial: entered by `{N.transition(j, v, 'in')}`")
+    return out
+
+
+def _condition(m: _Model, s: Subsystem, behaviour: str, name: str) -> list[str]:
+    b = next((x for x in s.behaviours if x.name == behaviour), None)
+    if b is None:
+        return []
+    c = next((x for x in b.conditions if x.name == name), None)
+    if c is None:
+        return []
+    j, v = m.j[s.id], s.name
+    sym = "f^tau" if c.kind == "terminal" else "f^epsilon"
+    return [f"{sym} of behaviour {behaviour}: ends it through "
+            f"`{N.transition(j, v, behaviour, 'out')}` (and blocks "
+            f"`{N.transition(j, v, behaviour, 4)}`)"]
+
+
+def _update(m: _Model, s: Subsystem, behaviour: str, target: str) -> list[str]:
+    b = next((x for x in s.behaviours if x.name == behaviour), None)
+    if b is None:
+        return []
+    f = next((x for x in b.functions if x.target == target), None)
+    if f is None:
+        return []
+    j, v = m.j[s.id], s.name
+    inputs = tuple(x.name for x in s.inputs)
+    lines = [f"partial function f_{{{j},{v},{behaviour},{f.index}}} (psi = {f.index}) "
+             f"for `{target}`: page `{N.page(j, v, behaviour, f.index, sup='^f')}`, "
+             f"{len(f.cases)} data-availability cases"]
+    for case in f.cases:
+        place = N.place(j, v, behaviour, f.index, case.index)
+        what = "void" if case.void else "operation"
+        lines.append(f"- varpi = {case.index}: {combination_text(inputs, case.new)} -> "
+                     f"`{place}` ({what})")
+    return [lines[0], "\n".join(lines[1:])]
+
+
+def hover_text(d: Definition, system: System | None,
+               update: tuple[str, str] | None = None) -> str:
+    """Markdown for a definition; `update` = (behaviour, target) when the cursor is on the
+    target of an `update`."""
+    head = f"**{d.kind}** `{d.name}`"
+    body = [head, _code(d.detail)]
+    if system is None:
+        return "\n\n".join(body)
+    m = _Model(system)
+    prefix, _, rest = d.key.partition(":")
+    lines: list[str] = []
+    _file, _, scoped = rest.partition("|")
+    sysname, _, base = scoped.partition("/")
+    if prefix in ("agent", "sub", "buf", "mem", "param", "beh", "cond", "inst") \
+            and sysname != system.name:
+        return "\n\n".join(body)
+    if prefix == "agent":
+        a = m.agents.get(base)
+        if a is not None:
+            lines.append(f"agent a_{a.designator}: page `{N.page(a.designator)}` in H "
+                         f"(agent layer H_{a.designator}); subsystems "
+                         + ", ".join(f"`{s.id}`" for s in a.subsystems))
+    elif prefix == "sub":
+        s = m.subs.get(base)
+        if s is not None:
+            j = m.j[s.id]
+            freq = f" @ {s.frequency:g} Hz" if s.frequency else ""
+            lines.append(f"{_LETTER_TEXT[s.letter]} {_subsystem_symbol(s, j)} (`{s.id}`){freq}: "
+                         f"page `{N.page(j, s.name)}` in `{N.page(j)}` (subsystem layer "
+                         f"sH_{{{j},{s.name}}})")
+            lines.append(f"inputs nu = {len(s.inputs)}, outputs mu = {len(s.outputs)}; "
+                         "behaviours " + ", ".join(b.name for b in s.behaviours))
+    elif prefix == "inst":
+        dev = m.devices.get(base)
+        if dev is not None:
+            j = m.j[dev.id]
+            lines.append(f"{_LETTER_TEXT[dev.letter]} {dev.letter}_{{{j},{dev.name}}} "
+                         f"(`{dev.id}`, {dev.device_type}): device net "
+                         f"`{N.page(j, dev.name, sup='^' + dev.letter)}`")
+    elif prefix == "buf":
+        sid, tail = _split(base)
+        owner = m.owner(sid)
+        if owner is not None and tail:
+            lines += _buffer(m, owner, tail[0])
+    elif prefix in ("mem", "param"):
+        sid, tail = _split(base)
+        s = m.subs.get(sid)
+        if s is not None and tail:
+            var = next((x for x in (s.memory if prefix == "mem" else s.params)
+                        if x.name == tail[0]), None)
+            if var is not None:
+                lines.append(f"type {_type(var.type)}")
+                if prefix == "mem":
+                    mu1 = len(s.outputs) + 1
+                    j = m.j[s.id]
+                    lines.append(f"written by the memory partial function (psi = mu + 1 = "
+                                 f"{mu1}): pages " + ", ".join(
+                                     f"`{N.page(j, s.name, b.name, mu1, sup='^f')}`"
+                                     for b in s.behaviours))
+    elif prefix == "beh":
+        sid, tail = _split(base)
+        s = m.subs.get(sid)
+        if s is not None and tail:
+            lines += (_update(m, s, tail[0], update[1]) if update is not None
+                      else _behaviour(m, s, tail[0]))
+    elif prefix == "cond":
+        sid, tail = _split(base)
+        s = m.subs.get(sid)
+        if s is not None and len(tail) == 2:
+            lines += _condition(m, s, tail[0], tail[1])
+    elif prefix == "type":
+        t = dict(system.types).get(d.name)
+        if t is not None:
+            lines.append(f"type {_type(t)}")
+    elif prefix == "extern":
+        ext = next((e for e in system.externs if e.name == d.name), None)
+        if ext is not None:
+            lines.append(f"bound to `{ext.binding}`")
+    return "\n\n".join(body + lines)
+
+
+def update_hover(d: Definition, behaviour: str, target: str, system: System | None) -> str:
+    """Hover on the target of `update`: the partial function and its cases."""
+    text = hover_text(d, system, (behaviour, target))
+    model = text.split("\n\n", 2)[2] if text.count("\n\n") >= 2 else ""
+    new_head = f"**partial function** for `{target}` in behaviour `{behaviour}`"
+    return "\n\n".join(x for x in (new_head, _code(f"update {target}"), model) if x)

@@ -1,0 +1,104 @@
+"""Document symbols: the outline of a file (system > agents > subsystems > behaviours, and
+the library declarations), from its AST (a partial one while the text has errors)."""
+
+from __future__ import annotations
+
+from lsprotocol import types as lsp
+
+from rssm_dsl.lsp.positions import LineIndex
+from rssm_dsl.source import Span
+from rssm_dsl.syntax import ast
+
+K = lsp.SymbolKind
+
+
+def _type_text(t: ast.TypeExpr) -> str:
+    if isinstance(t, ast.ArrayType):
+        return f"{_type_text(t.element)}[{t.size}]"
+    return t.name
+
+
+class _Outline:
+    def __init__(self, lines: LineIndex, encoding: str, file: str) -> None:
+        self.lines = lines
+        self.encoding = encoding
+        self.file = file
+
+    def sym(self, name: str, kind: lsp.SymbolKind, full: Span, sel: Span,
+            detail: str | None = None,
+            children: list[lsp.DocumentSymbol] | None = None) -> lsp.DocumentSymbol:
+        rng = self.lines.range(full, self.encoding)
+        sel_rng = self.lines.range(sel, self.encoding)
+        # the selection range must be contained in the full range
+        if (sel_rng.start.line, sel_rng.start.character) < (rng.start.line, rng.start.character) \
+                or (sel_rng.end.line, sel_rng.end.character) > (rng.end.line, rng.end.character):
+            sel_rng = lsp.Range(start=rng.start, end=rng.start)
+        return lsp.DocumentSymbol(name=name or "_", kind=kind, range=rng,
+                                  selection_range=sel_rng, detail=detail,
+                                  children=children or None)
+
+    def buffer(self, b: ast.BufferDecl) -> lsp.DocumentSymbol:
+        peer = f" {'to' if b.direction is ast.Direction.OUTPUT else 'from'} {b.peer}" \
+            if b.peer else ""
+        mode = f" {b.mode.value}" if b.mode else ""
+        return self.sym(b.name, K.Field, b.span, b.name_span,
+                        f"{b.direction.value}: {_type_text(b.type)}{peer}{mode}")
+
+    def behaviour(self, bd: ast.BehaviourDecl) -> lsp.DocumentSymbol:
+        kids = [self.sym(f"update {u.target}", K.Function, u.span, u.target_span,
+                         "partial function" + ("" if u.plain else f", {len(u.cases)} cases"))
+                for u in bd.updates]
+        kids += [self.sym(c.name, K.Event, c.span, c.name_span, f"{c.kind} condition")
+                 for c in bd.conditions]
+        return self.sym(bd.name, K.Method, bd.span, bd.name_span, "behaviour", kids)
+
+    def subsystem(self, s: ast.SubsystemDecl) -> lsp.DocumentSymbol:
+        kids = [self.sym(p.name, K.Constant, p.span, p.name_span,
+                         f"param: {_type_text(p.type)}") for p in s.params]
+        kids += [self.sym(m.name, K.Variable, m.span, m.name_span,
+                          f"memory: {_type_text(m.type)}") for m in s.memory]
+        kids += [self.buffer(b) for b in s.buffers]
+        kids += [self.behaviour(bd) for bd in s.behaviours]
+        freq = f" @ {s.frequency.hertz:g} Hz" if s.frequency else ""
+        return self.sym(s.name, K.Class, s.span, s.name_span,
+                        f"{s.kind.value} subsystem{freq}", kids)
+
+    def agent(self, a: ast.AgentDecl) -> lsp.DocumentSymbol:
+        kids = [self.subsystem(s) for s in a.subsystems]
+        kids += [self.sym(d.name, K.Object, d.span, d.name_span,
+                          f"real {d.kind.value}: {d.device}") for d in a.devices]
+        return self.sym(a.name, K.Module, a.span, a.name_span, "agent", kids)
+
+    def decl(self, d: ast.Decl) -> lsp.DocumentSymbol:
+        match d:
+            case ast.SystemDecl():
+                return self.sym(d.name, K.Namespace, d.span, d.name_span, "system",
+                                [self.agent(a) for a in d.agents])
+            case ast.RecordDecl():
+                fields = [self.sym(f.name, K.Field, f.span, f.span, _type_text(f.type))
+                          for f in d.fields]
+                return self.sym(d.name, K.Struct, d.span, d.name_span, "record", fields)
+            case ast.AliasDecl():
+                return self.sym(d.name, K.TypeParameter, d.span, d.name_span,
+                                f"type = {_type_text(d.type)}")
+            case ast.ConstDecl():
+                return self.sym(d.name, K.Constant, d.span, d.name_span, "const")
+            case ast.ExternDecl():
+                params = ", ".join(f"{p.name}: {_type_text(p.type)}" for p in d.params)
+                return self.sym(d.name, K.Function, d.span, d.name_span,
+                                f"extern ({params}) -> {_type_text(d.result)}")
+            case ast.DeviceDecl():
+                kids = [self.buffer(b) for b in d.buffers]
+                kids += [self.sym(p.name, K.Constant, p.span, p.name_span, "param")
+                         for p in d.params]
+                return self.sym(d.name, K.Interface, d.span, d.name_span,
+                                f"device {d.kind.value}", kids)
+        raise AssertionError(d)
+
+
+def document_symbols(module: ast.Module | None, lines: LineIndex,
+                     encoding: str) -> list[lsp.DocumentSymbol]:
+    if module is None:
+        return []
+    outline = _Outline(lines, encoding, module.path)
+    return [outline.decl(d) for d in module.decls]

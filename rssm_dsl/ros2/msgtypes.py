@@ -1,0 +1,147 @@
+"""ROS 2 message types for the system's data (the ``<system>_interfaces`` package).
+
+| RSSM type        | message field type                 | sample message of a channel        |
+|------------------|------------------------------------|------------------------------------|
+| bool/int/float   | bool / int64 / float64             | BoolSample, Int64Sample, Float64Sample |
+| T[N], T scalar   | bool[N] / int64[N] / float64[N]    | Float64Array7Sample, ...            |
+| record R         | message R (CamelCase of the name)  | RSample                             |
+| R[N]             | R[N]                               | RArray4Sample                       |
+| T[N][M]          | TArrayN[M] (see below)             | TArrayNArrayMSample                 |
+
+ROS 2 arrays do not nest: the inner array of T[N][M] is a wrapper message TArrayN with one
+field ``items``.
+
+Every channel's data topic carries its type's sample message: ``uint32 epoch``, ``uint64
+seq``, ``value``; blocking producers get ``Ack`` (``epoch``, ``seq``) back; every subsystem
+publishes ``SubsystemStatus`` on its diagnostics topic.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+from rssm_dsl.ros2.names import pascal
+from rssm_dsl.ros2.pycode import tuple_source
+from rssm_dsl.semantics.types import ArrayT, RecordT, Scalar, Type
+
+SCALAR_FIELD = {"bool": "bool", "int": "int64", "float": "float64"}
+SCALAR_NAME = {"bool": "Bool", "int": "Int64", "float": "Float64"}
+
+ACK_FIELDS = (("uint32", "epoch", "the producer's epoch (a random number drawn at its start)"),
+              ("uint64", "seq", "the sample taken"))
+STATUS_FIELDS = (
+    ("builtin_interfaces/Time", "stamp", ""),
+    ("string", "subsystem", "the subsystem's id, e.g. a1.c"),
+    ("string", "event", "enter | iteration | switch | end | error"),
+    ("string", "behaviour", "the current behaviour (empty once the subsystem ended)"),
+    ("string", "previous_behaviour", "the behaviour that just ended (switch, end)"),
+    ("uint64", "iteration", "i, the discrete time stamp (iterations so far)"),
+    ("uint64", "behaviour_iterations", "iterations since the current behaviour started"),
+    ("uint64", "switches", "behaviour switches so far"),
+    ("string[]", "behaviours", "every behaviour of the subsystem"),
+    ("uint64[]", "behaviour_counts", "iterations of each, in total"),
+    ("string[]", "inputs", "the input buffers"),
+    ("bool[]", "new_data", "new(x) of each input in the last iteration"),
+    ("string[]", "partial_functions", "targets of the partial transition functions"),
+    ("uint16[]", "data_cases", "the data-availability case (varpi) each took"),
+    ("string[]", "conditions", "terminal and error conditions of the behaviour"),
+    ("bool[]", "condition_values", "their values at the end of the last iteration"),
+    ("uint64", "overruns", "iterations that started two periods or more late"),
+    ("uint64[]", "overwritten", "samples of each input that were never taken"),
+    ("string", "message", "what went wrong (event error)"),
+)
+
+
+@dataclass(frozen=True)
+class MsgField:
+    type: str
+    name: str
+    comment: str = ""
+
+
+@dataclass(frozen=True)
+class MsgView:
+    name: str
+    comment: str
+    fields: tuple[MsgField, ...]
+
+
+class MessageTypes:
+    """Names and message descriptors of the system's types (see the module docstring)."""
+
+    def __init__(self) -> None:
+        self.records: dict[str, RecordT] = {}       # message name -> record
+        self.wrappers: dict[str, ArrayT] = {}       # wrapper message name -> inner array
+        self.samples: dict[str, Type] = {}          # sample message name -> value type
+
+    # ------------------------------------------------------------------ names
+    def type_name(self, t: Type) -> str:
+        """CamelCase name of a type: Float64, LwrState, Float64Array7, ..."""
+        if isinstance(t, Scalar):
+            return SCALAR_NAME[t.name]
+        if isinstance(t, RecordT):
+            name = pascal(t.name)
+            if name not in self.records:
+                self.records[name] = t
+                for _, ft in t.fields:
+                    self.field_type(ft)
+            return name
+        return f"{self.type_name(t.element)}Array{t.size}"
+
+    def field_type(self, t: Type) -> str:
+        """The type of a message field holding a value of type ``t``."""
+        if isinstance(t, Scalar):
+            return SCALAR_FIELD[t.name]
+        if isinstance(t, RecordT):
+            return self.type_name(t)
+        return f"{self._element(t.element)}[{t.size}]"
+
+    def _element(self, t: Type) -> str:
+        if isinstance(t, ArrayT):
+            name = self.type_name(t)
+            if name not in self.wrappers:
+                self.wrappers[name] = t
+                self.field_type(t)
+            return name
+        return self.field_type(t)
+
+    def sample(self, t: Type) -> str:
+        name = self.type_name(t) + "Sample"
+        if name not in self.samples:
+            self.samples[name] = t
+            self.field_type(t)
+        return name
+
+    # ------------------------------------------------------------------ descriptors
+    def descriptor(self, t: Type, msg: str = "_msg") -> str:
+        """The message descriptor (rssm_dsl/ros2/runtime/messages.py) of ``t`` as Python
+        source; ``msg`` is the name under which the node imported the messages."""
+        if isinstance(t, Scalar):
+            return f"({t.name!r},)"
+        if isinstance(t, ArrayT):
+            wrapper = f"{msg}.{self.type_name(t.element)}" if isinstance(
+                t.element, ArrayT) else "None"
+            return f"('array', {self.descriptor(t.element, msg)}, {t.size}, {wrapper})"
+        fields = tuple_source([f"({n!r}, {self.descriptor(ft, msg)})" for n, ft in t.fields])
+        return f"('record', {msg}.{self.type_name(t)}, {fields})"
+
+    # ------------------------------------------------------------------ .msg files
+    def views(self) -> list[MsgView]:
+        out: list[MsgView] = []
+        for name, rec in self.records.items():
+            out.append(MsgView(name, f"record {rec.name} of the specification",
+                               tuple(MsgField(self.field_type(ft), n) for n, ft in rec.fields)))
+        for name, arr in self.wrappers.items():
+            out.append(MsgView(name, f"an array {arr} as an element of an array (ROS 2 arrays "
+                               "do not nest)", (MsgField(self.field_type(arr), "items"),)))
+        for name, t in self.samples.items():
+            out.append(MsgView(name, f"one sample of a channel of type {t}", (
+                MsgField("uint32", "epoch", "the producer's epoch (random, drawn at its start)"),
+                MsgField("uint64", "seq", "the producer's sample number, from 1"),
+                MsgField(self.field_type(t), "value"))))
+        out.append(MsgView("Ack", "a consumer took a sample of a blocking producer",
+                           tuple(MsgField(*f) for f in ACK_FIELDS)))
+        out.append(MsgView("SubsystemStatus", "the diagnostics of a subsystem node",
+                           tuple(MsgField(*f) for f in STATUS_FIELDS)))
+        return sorted(out, key=lambda m: m.name)
+

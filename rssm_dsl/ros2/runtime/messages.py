@@ -1,0 +1,72 @@
+"""Values to ROS messages and back.
+
+A *message descriptor* is the value descriptor of :mod:`.values` with the message classes of
+the workspace's interfaces package filled in by the generator:
+
+* ``("bool",)``, ``("int",)``, ``("float",)``: ``bool``, ``int64``, ``float64`` fields;
+* ``("array", ELEMENT, N, WRAPPER)``: a fixed-size array field ``T[N]``; WRAPPER is ``None``
+  unless the element is itself an array, which ROS messages cannot nest: then each element
+  is a WRAPPER message holding the inner array in its field ``items``;
+* ``("record", CLASS, ((FIELD, DESCRIPTOR), ...))``: a message of the record's type.
+"""
+
+from __future__ import annotations
+
+from collections.abc import Callable
+from typing import Any
+
+import numpy as np
+
+from .values import Desc, float_array
+
+ToMsg = Callable[[Any], Any]
+FromMsg = Callable[[Any], Any]
+
+
+def to_msg(d: Desc) -> ToMsg:
+    """The function turning a value into what a message field of descriptor ``d`` holds."""
+    kind = d[0]
+    if kind == "bool":
+        return bool
+    if kind == "int":
+        return int
+    if kind == "float":
+        return float
+    if kind == "array":
+        elem, wrapper = d[1], d[3]
+        if elem[0] == "float":
+            return lambda v: np.asarray(v, dtype=np.float64)
+        if elem[0] == "int":
+            return lambda v: np.asarray(v, dtype=np.int64)
+        if elem[0] == "bool":
+            return list
+        inner = to_msg(elem)
+        if wrapper is not None:
+            return lambda v: [wrapper(items=inner(x)) for x in v]
+        return lambda v: [inner(x) for x in v]
+    cls, fields = d[1], tuple((name, to_msg(fd)) for name, fd in d[2])
+
+    def record(v: Any) -> Any:
+        return cls(**{name: conv(v[name]) for name, conv in fields})
+    return record
+
+
+def from_msg(d: Desc) -> FromMsg:
+    """The function turning a message field of descriptor ``d`` into a value."""
+    kind = d[0]
+    if kind == "bool":
+        return bool
+    if kind == "int":
+        return int
+    if kind == "float":
+        return float
+    if kind == "array":
+        elem, wrapper = d[1], d[3]
+        if elem[0] == "float":
+            return float_array
+        inner = from_msg(elem)
+        if wrapper is not None:
+            return lambda m: tuple(inner(x.items) for x in m)
+        return lambda m: tuple(inner(x) for x in m)
+    fields = tuple((name, from_msg(fd)) for name, fd in d[2])
+    return lambda m: {name: conv(getattr(m, name)) for name, conv in fields}

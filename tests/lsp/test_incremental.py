@@ -1,0 +1,131 @@
+"""An edit inside one agent is reparsed alone (rssm_dsl/lsp/incremental.py): whatever the
+edits, the diagnostics, the outline and the symbol index are those of a full analysis."""
+
+from __future__ import annotations
+
+import random
+import re
+from pathlib import Path
+
+from hypothesis import given, settings
+from hypothesis import strategies as st
+from lsprotocol import types as lsp
+
+from rssm_dsl.lsp.analysis import SYNTAX_CODES, Analysis, analyze_text
+from rssm_dsl.lsp.symbols import document_symbols
+from rssm_dsl.semantics.loader import display_path
+from tests.lsp.specs import GOOD, MISSING_CASE
+
+_HEAD, _, _REST = GOOD.partition("system lwr4_circle {\n")
+_AGENT = _REST[: _REST.rindex("}")]
+_BROKEN = MISSING_CASE.partition("system lwr4_circle {\n")[2]
+_BROKEN_AGENT = _BROKEN[: _BROKEN.rindex("}")]
+
+
+def spec(agents: int) -> str:
+    """Several copies of the example's agent; the third one misses a data case (E501)."""
+    parts = [(_BROKEN_AGENT if i == 3 else _AGENT).replace("agent a1 {", f"agent a{i} {{")
+             for i in range(1, agents + 1)]
+    return f"{_HEAD}system many {{\n{''.join(parts)}}}\n"
+
+
+def _diags(a: Analysis) -> list[tuple[str, str, int, int, int, int]]:
+    return [(d.code, d.message, d.span.line, d.span.column, d.span.end_line, d.span.end_column)
+            for d in a.diagnostics]
+
+
+def _outline(a: Analysis) -> list[lsp.DocumentSymbol]:
+    return document_symbols(a.module, a.lines, "utf-16")
+
+
+def _occurrences(a: Analysis) -> set[tuple[str, int, int, str]]:
+    return {(o.span.file, o.span.offset, o.span.end_offset, o.key)
+            for occs in a.index.occurrences.values() for o in occs
+            if not o.key.startswith("local:")}
+
+
+def _edit(text: str, rng: random.Random) -> str:
+    """One edit a person could make inside an agent (sometimes one that breaks it)."""
+    lines = text.split("\n")
+    inside = [i for i, line in enumerate(lines) if line.startswith("      ")]
+    n = rng.choice(inside)
+    line = lines[n]
+    kind = rng.randrange(6)
+    if kind == 0 and re.search(r"\d", line):            # change a number
+        digits = [m.start() for m in re.finditer(r"\d", line)]
+        at = rng.choice(digits)
+        lines[n] = line[:at] + str(rng.randrange(10)) + line[at + 1:]
+    elif kind == 1:                                       # a new comment line
+        lines.insert(n, "      // note é 😀")
+    elif kind == 2 and line.strip():                      # delete a line
+        del lines[n]
+    elif kind == 3:                                       # split a line in two
+        at = line.find(" ", len(line) - len(line.lstrip()) + 1)
+        if at > 0:
+            lines[n] = line[:at] + "\n        " + line[at + 1:]
+    elif kind == 4:                                       # a typo: a syntax error
+        lines[n] = line + " +* "
+    else:                                                 # rename a name in one place
+        lines[n] = re.sub(r"\bphase\b", "phase2", line, count=1)
+    return "\n".join(lines)
+
+
+@settings(max_examples=20, deadline=None)
+@given(seed=st.integers(0, 2**32 - 1))
+def test_incremental_analysis_equals_a_full_one(seed: int, tmp_path_factory: object) -> None:
+    rng = random.Random(seed)
+    path = Path("/tmp/rssm-incremental-test/many.rssm")
+    shown = display_path(path)
+    text = spec(5)
+    previous = analyze_text("file:///many", path, shown, text, 1, {}, None)
+    assert previous.how == "full" and [d[0] for d in _diags(previous)] == ["E501"]
+    for version in range(2, 8):
+        text = _edit(text, rng)
+        step = analyze_text("file:///many", path, shown, text, version, {}, previous)
+        full = analyze_text("file:///many", path, shown, text, version, {}, None)
+        if any(d.code in SYNTAX_CODES for d in full.diagnostics):
+            # the agent-local recovery may differ from the whole file's; both report it
+            assert any(d.code in SYNTAX_CODES for d in step.diagnostics)
+            previous = step
+            continue
+        assert _diags(step) == _diags(full)
+        assert _outline(step) == _outline(full)
+        if step.how == "incremental":
+            assert _occurrences(step) == _occurrences(full)
+        previous = step
+
+
+def test_edits_inside_an_agent_are_reparsed_alone() -> None:
+    path = Path("/tmp/rssm-incremental-test/alone.rssm")
+    shown = display_path(path)
+    text = spec(4)
+    a = analyze_text("file:///alone", path, shown, text, 1, {}, None)
+    # in agent a2: a value, then a new line; in agent a4: a line removed
+    at = text.index("agent a2 {")
+    t2 = text[:at] + text[at:].replace("float = 0.05", "float = 0.07", 1)
+    b = analyze_text("file:///alone", path, shown, t2, 2, {}, a)
+    assert b.how == "incremental"
+    marker = "agent a4 {\n"
+    t3 = t2.replace(marker, marker + "    // a comment line\n")
+    c = analyze_text("file:///alone", path, shown, t3, 3, {}, b)
+    assert c.how == "incremental"
+    [e501] = c.diagnostics
+    assert e501.code == "E501"
+    line = t3.splitlines()[e501.span.line - 1]
+    assert line[e501.span.column - 1:e501.span.end_column - 1] == "torque"
+    before = "\n".join(t3.splitlines()[: e501.span.line - 1])
+    assert before.count("agent a") == 3 and "agent a3 {" in before   # still in agent a3
+    # a syntax error inside agent a2 is reparsed alone too: a2 reports it, a3 keeps its E501
+    t3b = t3.replace("terminal full_circle when phase >= 2.0 * pi",
+                     "terminal full_circle when phase >= 2.0 *", 3)
+    t3b = t3b.replace("terminal full_circle when phase >= 2.0 *",
+                      "terminal full_circle when phase >= 2.0 * pi", 2)
+    broken = analyze_text("file:///alone", path, shown, t3b, 5, {}, c)
+    assert broken.how == "incremental"
+    assert [d.code for d in broken.diagnostics] == ["E005", "E501"]
+    assert _outline(broken)[0].children is not None and len(_outline(broken)[0].children) == 4
+    repaired = analyze_text("file:///alone", path, shown, t3, 6, {}, broken)
+    assert repaired.how == "incremental" and _diags(repaired) == _diags(c)
+    # an edit outside every agent: a full analysis
+    t4 = t3.replace("import std.types", "import std.types\n")
+    assert analyze_text("file:///alone", path, shown, t4, 4, {}, c).how == "full"

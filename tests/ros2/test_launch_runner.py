@@ -1,0 +1,143 @@
+"""The launch runner: what the generated launch files describe, the command lines it
+derives (as `ros2 launch` would run them), and running real processes (stand-in node
+executables in a fake install prefix) with durations, signals and exit codes."""
+
+from __future__ import annotations
+
+import json
+import os
+import subprocess
+import sys
+from pathlib import Path
+
+import pytest
+
+from rssm_dsl.pipeline import compile_file
+from rssm_dsl.ros2 import launch_runner as lr
+from rssm_dsl.ros2.generator import generate, write_workspace
+from tests.conftest import ROOT
+
+NODE = """#!{python}
+import signal, sys, time, pathlib
+out = pathlib.Path({out!r})
+out.write_text(" ".join(sys.argv[1:]))
+mode = {mode!r}
+if mode == "exit":
+    sys.exit({code})
+def stop(*_):
+    out.write_text(out.read_text() + " SIGINT")
+    sys.exit(0)
+signal.signal(signal.SIGINT, stop)
+time.sleep(60)
+"""
+
+
+def fake_prefix(tmp: Path, package: str, nodes: dict[str, tuple[str, int]]) -> Path:
+    """An install prefix holding `package` with one stand-in executable per node."""
+    prefix = tmp / "install"
+    (prefix / "share" / "ament_index" / "resource_index" / "packages").mkdir(parents=True,
+                                                                             exist_ok=True)
+    (prefix / "share" / "ament_index" / "resource_index" / "packages" / package).write_text("")
+    lib = prefix / "lib" / package
+    lib.mkdir(parents=True, exist_ok=True)
+    for exe, (mode, code) in nodes.items():
+        path = lib / exe
+        path.write_text(NODE.format(python=sys.executable, out=str(tmp / f"{exe}.out"),
+                                    mode=mode, code=code))
+        path.chmod(0o755)
+    return prefix
+
+
+@pytest.fixture
+def lwr4_launch(tmp_path: Path, monkeypatch: pytest.MonkeyPatch) -> Path:
+    monkeypatch.chdir(ROOT)
+    ws = generate(compile_file(Path("examples/lwr4_circle.rssm")))
+    assert not isinstance(ws, list)
+    write_workspace(ws, tmp_path / "src")
+    return tmp_path / "src" / "lwr4_circle_a1" / "launch" / "a1.launch.py"
+
+
+def test_generated_launch_file_describes_every_node(lwr4_launch: Path, tmp_path: Path,
+                                                    monkeypatch: pytest.MonkeyPatch) -> None:
+    prefix = fake_prefix(tmp_path, "lwr4_circle_a1", {})
+    monkeypatch.setenv("AMENT_PREFIX_PATH", str(prefix))
+    nodes = lr.load_launch_file(lwr4_launch)
+    params = str(prefix / "share" / "lwr4_circle_a1" / "config" / "params.yaml")
+    assert [(n.package, n.executable, n.name, n.namespace, n.parameters) for n in nodes] == [
+        ("lwr4_circle_a1", "c", "c", "a1", [params]),
+        ("lwr4_circle_a1", "e_lwr", "e_lwr", "a1", [params]),
+        ("lwr4_circle_a1", "E_lwr", "E_lwr", "a1", [params]),
+    ]
+    assert [n.fqn for n in nodes] == ["/a1/c", "/a1/e_lwr", "/a1/E_lwr"]
+    assert lr.command(nodes[1], ["rssm.rate_hz:=10.0"]) == [
+        str(prefix / "lib" / "lwr4_circle_a1" / "e_lwr"), "--ros-args", "-r", "__node:=e_lwr",
+        "-r", "__ns:=/a1", "--params-file", params, "-p", "rssm.rate_hz:=10.0"]
+    # the stand-ins leave no trace in sys.modules
+    assert "launch" not in sys.modules and "launch_ros.actions" not in sys.modules
+
+
+def test_dry_run_prints_the_commands(lwr4_launch: Path, tmp_path: Path,
+                                     monkeypatch: pytest.MonkeyPatch,
+                                     capsys: pytest.CaptureFixture[str]) -> None:
+    prefix = fake_prefix(tmp_path, "lwr4_circle_a1", {})
+    monkeypatch.setenv("AMENT_PREFIX_PATH", str(prefix))
+    assert lr.main(["--dry-run", "-p", "/a1/c:radius:=0.1", str(lwr4_launch)]) == 0
+    lines = [json.loads(x) for x in capsys.readouterr().out.splitlines()]
+    assert [x["node"] for x in lines] == ["/a1/c", "/a1/e_lwr", "/a1/E_lwr"]
+    assert lines[0]["command"][-2:] == ["-p", "radius:=0.1"]
+    assert "-p" not in lines[1]["command"]
+
+
+def test_unsupported_launch_actions_are_refused(tmp_path: Path,
+                                                capsys: pytest.CaptureFixture[str]) -> None:
+    f = tmp_path / "x.launch.py"
+    f.write_text("from launch import LaunchDescription\nfrom launch_ros.actions import Node\n"
+                 "def generate_launch_description():\n"
+                 "    return LaunchDescription([Node(package='p', executable='e', "
+                 "respawn=True)])\n")
+    assert lr.main([str(f)]) == 2
+    assert "Node(respawn=...) is not supported" in capsys.readouterr().err
+    assert lr.main([str(tmp_path / "missing.launch.py")]) == 2
+
+
+def _launch_file(tmp: Path, package: str, execs: list[str]) -> Path:
+    f = tmp / "t.launch.py"
+    nodes = ", ".join(f"Node(package={package!r}, executable={e!r}, name={e!r}, "
+                      f"namespace='ns', arguments=['--flag'])" for e in execs)
+    f.write_text("from launch import LaunchDescription\nfrom launch_ros.actions import Node\n"
+                 f"def generate_launch_description():\n    return LaunchDescription([{nodes}])\n")
+    return f
+
+
+def _run(files: list[Path], env: dict[str, str], *args: str) -> subprocess.CompletedProcess[str]:
+    return subprocess.run([sys.executable, "-m", "rssm_dsl.ros2.launch_runner", *args,
+                           *map(str, files)], env=env, capture_output=True, text=True,
+                          timeout=60, check=False)
+
+
+def test_runs_the_nodes_and_reports_their_exit_codes(tmp_path: Path) -> None:
+    prefix = fake_prefix(tmp_path, "pkg", {"ok": ("exit", 0), "bad": ("exit", 3)})
+    env = dict(os.environ, AMENT_PREFIX_PATH=str(prefix))
+    done = _run([_launch_file(tmp_path, "pkg", ["ok"])], env, "--log-dir", str(tmp_path / "l"))
+    assert done.returncode == 0, done.stderr
+    assert (tmp_path / "ok.out").read_text() == "--flag --ros-args -r __node:=ok -r __ns:=/ns"
+    assert "/ns/ok (pkg/ok) exited 0" in done.stderr
+    assert (tmp_path / "l" / "ns.ok.log").exists()
+    done = _run([_launch_file(tmp_path, "pkg", ["ok", "bad"])], env)
+    assert done.returncode == 3 and "/ns/bad (pkg/bad) exited 3" in done.stderr
+
+
+def test_duration_stops_the_nodes_with_sigint(tmp_path: Path) -> None:
+    prefix = fake_prefix(tmp_path, "pkg", {"loop": ("loop", 0)})
+    env = dict(os.environ, AMENT_PREFIX_PATH=str(prefix))
+    done = _run([_launch_file(tmp_path, "pkg", ["loop"])], env, "--duration", "1.5")
+    assert done.returncode == 124, done.stderr
+    assert (tmp_path / "loop.out").read_text().endswith(" SIGINT")
+    assert "/ns/loop (pkg/loop) exited 0" in done.stderr
+
+
+def test_missing_package_is_reported(tmp_path: Path) -> None:
+    env = dict(os.environ, AMENT_PREFIX_PATH=str(tmp_path))
+    done = _run([_launch_file(tmp_path, "nowhere", ["x"])], env)
+    assert done.returncode == 2
+    assert "package 'nowhere' is not found on AMENT_PREFIX_PATH" in done.stderr
