@@ -6,12 +6,15 @@ from __future__ import annotations
 import os
 import shutil
 import tempfile
-from collections.abc import Mapping
+from collections.abc import Iterable, Mapping
 from pathlib import Path
 
 
-def write_outputs(target: Path, files: Mapping[str, str | bytes]) -> list[Path]:
-    """Write ``files`` (name relative to ``target`` -> text, or bytes for binary files)."""
+def write_outputs(target: Path, files: Mapping[str, str | bytes],
+                  replace_dirs: Iterable[str] = ()) -> list[Path]:
+    """Write ``files`` (name relative to ``target`` -> text, or bytes for binary files).
+    The subfolders ``replace_dirs`` of ``target`` are emptied first (once everything is
+    staged), so files no longer generated there disappear; anything else is left alone."""
     target = target.resolve()
     target.parent.mkdir(parents=True, exist_ok=True)
     staging = Path(tempfile.mkdtemp(prefix=".rssmc-", dir=target.parent))
@@ -24,6 +27,8 @@ def write_outputs(target: Path, files: Mapping[str, str | bytes]) -> list[Path]:
             else:
                 path.write_text(text, encoding="utf-8")
         target.mkdir(parents=True, exist_ok=True)
+        for sub in replace_dirs:
+            shutil.rmtree(target / sub, ignore_errors=True)
         written: list[Path] = []
         for rel in sorted(files):
             dest = target / rel

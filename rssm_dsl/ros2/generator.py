@@ -19,9 +19,6 @@ what. Templates see only :mod:`rssm_dsl.ros2.viewmodel` records.
 
 from __future__ import annotations
 
-import os
-import shutil
-import tempfile
 from dataclasses import dataclass
 from pathlib import Path
 from typing import Any
@@ -30,6 +27,7 @@ from xml.sax.saxutils import escape
 from jinja2 import Environment, PackageLoader, StrictUndefined
 
 from rssm_dsl.diagnostics import Diagnostic
+from rssm_dsl.emit.write import write_outputs
 from rssm_dsl.pipeline import Compilation
 from rssm_dsl.ros2.evaluate import SpecValues
 from rssm_dsl.ros2.names import NameChecker
@@ -155,27 +153,6 @@ def write_workspace(ws: Workspace, target: Path) -> list[Path]:
     """Write the workspace into ``target`` (the colcon ``src`` folder), all or nothing:
     files are staged beside it and moved into place. Files of packages this workspace
     generates that are no longer generated are removed; anything else is left alone."""
-    target = target.resolve()
-    target.parent.mkdir(parents=True, exist_ok=True)
-    staging = Path(tempfile.mkdtemp(prefix=".rssmc-ros2-", dir=target.parent))
-    try:
-        for rel, text in ws.files.items():
-            path = staging / rel
-            path.parent.mkdir(parents=True, exist_ok=True)
-            path.write_text(text, encoding="utf-8")
-        for rel, src in ws.copies.items():
-            path = staging / rel
-            path.parent.mkdir(parents=True, exist_ok=True)
-            shutil.copyfile(src, path)
-        target.mkdir(parents=True, exist_ok=True)
-        for pkg in ws.packages:
-            shutil.rmtree(target / pkg, ignore_errors=True)
-        written: list[Path] = []
-        for rel in sorted([*ws.files, *ws.copies]):
-            dest = target / rel
-            dest.parent.mkdir(parents=True, exist_ok=True)
-            os.replace(staging / rel, dest)
-            written.append(dest)
-        return written
-    finally:
-        shutil.rmtree(staging, ignore_errors=True)
+    files: dict[str, str | bytes] = dict(ws.files)
+    files.update({rel: src.read_bytes() for rel, src in ws.copies.items()})
+    return write_outputs(target, files, replace_dirs=ws.packages)
