@@ -13,6 +13,7 @@ from __future__ import annotations
 import math
 import sys
 import time
+from collections.abc import Callable
 from dataclasses import dataclass, field, replace
 from pathlib import Path
 from typing import TypedDict
@@ -24,15 +25,16 @@ _REPO = Path(__file__).resolve().parents[1]
 if str(_REPO) not in sys.path:
     sys.path.insert(0, str(_REPO))
 
-from stdlib.lwr4plus.dynamics import (
+from stdlib.lwr4plus.dynamics import (  # noqa: E402
     Lwr4Dynamics,
     Plane,
+    Profile,
     circle_peak_speed,
     circle_point,
     circle_reference,
     impedance_torque,
 )
-from stdlib.lwr4plus.mujoco_arm import MujocoLwr4
+from stdlib.lwr4plus.mujoco_arm import MujocoLwr4  # noqa: E402
 
 Vector = NDArray[np.float64]
 
@@ -55,6 +57,9 @@ class LoopConfig:
     period: float = 2.5  # one circle, s
     plane: Plane = "xy"
     settle: float = 0.0  # extra time at rest after the two circles, s
+    # "min-jerk": rest-to-rest sweeps; "constant": constant rate, reversing at speed (the
+    # control subsystem of examples/lwr4_circle.rssm)
+    profile: Profile = "min-jerk"
 
     @property
     def duration(self) -> float:
@@ -79,8 +84,12 @@ def run_hand_loop(
     duration_s: float | None = None,
     damp_velocity_error: bool = True,
     config: LoopConfig | None = None,
+    clock: Callable[[], float] = time.perf_counter,
 ) -> HandLoopResult:
-    """Run the circle experiment; the circle starts at the initial end-effector position."""
+    """Run the circle experiment; the circle starts at the initial end-effector position.
+
+    The loop is timed with ``clock`` (wall time by default; bench/lwr4.py passes CPU time).
+    """
     cfg = config if config is not None else LoopConfig()
     arm = MujocoLwr4()
     dyn = Lwr4Dynamics()
@@ -97,11 +106,11 @@ def run_hand_loop(
     q_log = np.empty((n, arm.model.nq))
     tau_log = np.empty((n, arm.model.nu))
 
-    start = time.perf_counter()
+    start = clock()
     for i in range(n):
         s = arm.state()
         p_des, v_des = circle_reference(
-            s.time, centre, cfg.radius, cfg.period, cfg.plane
+            s.time, centre, cfg.radius, cfg.period, cfg.plane, cfg.profile
         )
         tau = impedance_torque(
             s.q,
@@ -119,7 +128,7 @@ def run_hand_loop(
         pd_log[i] = p_des
         q_log[i] = s.q
         arm.step()
-    wall = time.perf_counter() - start
+    wall = clock() - start
 
     err = np.linalg.norm(p_log - pd_log, axis=1)
     return HandLoopResult(

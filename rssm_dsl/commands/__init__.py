@@ -5,6 +5,7 @@ COMMANDS: tuple[str, ...] = (
     "compile",
     "verify",
     "simulate",
+    "run",
     "render",
     "fmt",
     "lsp",

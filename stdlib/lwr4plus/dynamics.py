@@ -129,10 +129,21 @@ def impedance_torque(
     ``F = K (p_des - p) + D (v_des - p_dot)`` otherwise; ``J_v`` is the linear 3 x nv block.
     """
     dyn = dynamics if dynamics is not None else default_dynamics()
-    g, jac, p = dyn.gravity_jacobian_position(q)
-    jv = jac[:3]
-    force = cartesian_force(p, jv @ dq, p_des, v_des, K, D, damp_velocity_error)
-    return g + jv.T @ force
+    model, data, frame = dyn.model, dyn.data, dyn.ee_frame_id
+    # One RNEA for g(q) and one Jacobian (which also places the frame); both results are
+    # views into the scratch data, used before the next Pinocchio call overwrites them.
+    g = pin.computeGeneralizedGravity(model, data, q)
+    jv = pin.computeFrameJacobian(model, data, q, frame, pin.LOCAL_WORLD_ALIGNED)[:3]
+    p = data.oMf[frame].translation
+    v = jv @ dq
+    if isinstance(K, float | int) and isinstance(D, float | int):
+        # scalar gains (the common case): no gain-shape dispatch
+        damped = v_des - v if damp_velocity_error else -v
+        force = K * (p_des - p) + D * damped
+    else:
+        force = cartesian_force(p, v, p_des, v_des, K, D, damp_velocity_error)
+    tau: Vector = g + jv.T @ force
+    return tau
 
 
 def circle_point(
@@ -174,11 +185,30 @@ def cw_then_ccw_phase(t: float, period: float) -> tuple[float, float]:
     return phase - 2.0 * math.pi, rate
 
 
+def cw_then_ccw_constant_phase(t: float, period: float) -> tuple[float, float]:
+    """The same two circles at a constant rate of 2 pi / ``period`` rad/s, reversing at
+    once after the first (examples/lwr4_circle.rssm's control subsystem); at rest at 0 before
+    0 and after ``2 * period``."""
+    rate = 2.0 * math.pi / period
+    if t < 0.0 or t >= 2.0 * period:
+        return 0.0, 0.0
+    if t < period:
+        return -rate * t, -rate
+    return rate * (t - period) - 2.0 * math.pi, rate
+
+
+Profile = Literal["min-jerk", "constant"]
+
+
 def circle_reference(
-    t: float, centre: Vector, radius: float, period: float, plane: Plane = "xy"
+    t: float, centre: Vector, radius: float, period: float, plane: Plane = "xy",
+    profile: Profile = "min-jerk",
 ) -> tuple[Vector, Vector]:
     """Desired position and velocity at time ``t`` of the cw-then-ccw circle."""
-    phase, rate = cw_then_ccw_phase(t, period)
+    if profile == "min-jerk":
+        phase, rate = cw_then_ccw_phase(t, period)
+    else:
+        phase, rate = cw_then_ccw_constant_phase(t, period)
     return circle_point(centre, radius, phase, plane), circle_velocity(
         radius, phase, rate, plane
     )

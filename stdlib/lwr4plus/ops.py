@@ -1,13 +1,16 @@
 """The operations of the LWR4+ controller, as the externs of lwr4plus.rssm bind them.
 
 Records arrive as the interpreter represents them (dicts of read-only float64 arrays, see
-rssm_dsl.interp.values) and results are returned the same way.
+rssm_dsl.interp.values) and results are returned the same way (read-only arrays).
 
 * ``impedance(state, setpoint, stiffness, damping)``: the virtual effector's torque
   ``tau = g(q) + J_v(q)^T (K (p_des - p) + D (v_des - p_dot))`` with isotropic gains,
   computed by Pinocchio on the shipped model (dynamics.impedance_torque); ``p`` and ``p_dot``
   come from ``q``, ``dq`` through the model, the measured ``position``/``velocity`` of the
   state are not needed.
+* ``cartesian_impedance(state, setpoint, stiffness, damping, damp_velocity_error)``: the same
+  with the damping form chosen: ``D (v_des - p_dot)`` when ``damp_velocity_error`` is true,
+  the paper's ``- D p_dot`` (tau = tau_grav + J^T (K dP - D dP/dt)) when it is false.
 * ``circle_setpoint(radius, period, phase, direction)``: the point of a horizontal circle
   at ``phase`` (rad), travelled at ``2 pi / period`` rad/s, clockwise seen from above for
   ``direction = -1``, counter-clockwise for ``+1``. Phase 0 is :data:`CIRCLE_START`, the
@@ -21,26 +24,30 @@ from typing import Any
 
 import numpy as np
 
-from .dynamics import Vector, circle_point, circle_velocity, impedance_torque
+from .dynamics import Vector, circle_point, circle_velocity, default_dynamics, impedance_torque
 
 # Flange position (m, world) of the start pose of the experiment (bench/lwr4_handloop.py:
-# elbow bent, flange pointing down): phase 0 of every circle.
+# elbow bent, flange pointing down): phase 0 of every circle; `lwr4_start` in lwr4plus.rssm.
 CIRCLE_START: Vector = np.array([0.580, 0.0, 0.400])
 
 
 def _frozen(a: Vector) -> Vector:
-    a.flags.writeable = False
+    a.setflags(write=False)
     return a
 
 
-def impedance(state: Any, setpoint: Any, stiffness: float, damping: float) -> Vector:
+def cartesian_impedance(state: Any, setpoint: Any, stiffness: float, damping: float,
+                        damp_velocity_error: bool) -> Vector:
     """Joint torques (N·m) of the Cartesian impedance for an LwrState and a set point."""
-    tau = impedance_torque(np.asarray(state["q"], dtype=np.float64),
-                           np.asarray(state["dq"], dtype=np.float64),
-                           np.asarray(setpoint["position"], dtype=np.float64),
-                           np.asarray(setpoint["velocity"], dtype=np.float64),
-                           stiffness, damping, damp_velocity_error=True)
+    tau = impedance_torque(state["q"], state["dq"], setpoint["position"], setpoint["velocity"],
+                           float(stiffness), float(damping), bool(damp_velocity_error),
+                           default_dynamics())
     return _frozen(tau)
+
+
+def impedance(state: Any, setpoint: Any, stiffness: float, damping: float) -> Vector:
+    """:func:`cartesian_impedance` with velocity-error damping."""
+    return cartesian_impedance(state, setpoint, stiffness, damping, True)
 
 
 def circle_setpoint(radius: float, period: float, phase: float,

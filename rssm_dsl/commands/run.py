@@ -1,0 +1,167 @@
+"""`rssmc run`: the paper's section V experiment on the simulated LWR4+ (docs/run.md)."""
+
+from __future__ import annotations
+
+import json
+from pathlib import Path
+from typing import TYPE_CHECKING, Annotated, Any
+
+import typer
+
+from rssm_dsl.cli import EXIT_ERRORS, EXIT_OK, EXIT_USAGE, Format, guarded, report
+
+if TYPE_CHECKING:
+    from rssm_dsl.diagnostics import Diagnostic
+    from rssm_dsl.pipeline import Compilation
+
+EXIT_INTERRUPTED = 130
+DAMPING = ("velocity-error", "paper")
+
+FileArg = Annotated[Path, typer.Argument(help="The .rssm file of the system (e.g. "
+                                         "examples/lwr4_circle.rssm).", show_default=False)]
+
+
+def run_cmd(
+    file: FileArg,
+    output: Annotated[Path | None, typer.Option(
+        "--output", "-o", help="Output folder (default: out/<file name>-run).")] = None,
+    until: Annotated[float, typer.Option(
+        "--until", min=0.0, help="Stop at this simulated time (s) if the control subsystem "
+        "has not switched behaviours --switches times by then.")] = 30.0,
+    switches: Annotated[int, typer.Option(
+        "--switches", min=0, help="Stop after this many behaviour switches of the control "
+        "subsystem (2: cw -> ccw -> cw, one circle each way); 0: run until --until.")] = 2,
+    damping: Annotated[str | None, typer.Option(
+        "--damping", help="velocity-error: F = K dP + D (dP_des/dt - dP/dt); paper: the "
+        "paper's F = K dP - D dP/dt (default: the specification's "
+        "damp_velocity_error parameter).", show_default=False)] = None,
+    viewer: Annotated[bool, typer.Option(
+        "--viewer", help="Show the run in MuJoCo's viewer at real speed (needs a display; "
+        "without one the run goes on headless).")] = False,
+    video: Annotated[Path | None, typer.Option(
+        "--video", help="Also render the run offscreen to this MP4 file (EGL without a "
+        "display).", show_default=False)] = None,
+    trace: Annotated[Path | None, typer.Option(
+        "--trace", help="Write the interpreter's trace (JSON lines; every firing, send, "
+        "receive and switch; makes the run several times slower).", show_default=False)]
+    = None,
+    seed: Annotated[int, typer.Option(help="Seed of the choice among enabled "
+                                      "transitions.")] = 0,
+    format: Annotated[Format, typer.Option(
+        "--format", "-f", help="text: a summary; json: summary.json on stdout.")] = Format.text,
+    quiet: Annotated[bool, typer.Option("--quiet", "-q", help="Print only problems.")] = False,
+) -> None:
+    """Run the paper's experiment (section V) on a KUKA LWR4+ simulated by MuJoCo: the
+    control subsystem's circles, clockwise then counter-clockwise, tracked by the virtual
+    effector's impedance control, executed by the HPN interpreter on simulated time. Writes
+    trajectory.csv, fig19.png (the paper's Fig. 19) and summary.json, and prints the
+    duration, real-time factor, tracking error and behaviour switches. Exit 0 when the
+    experiment ran, 1 on errors in the specification or the run, 2 on usage errors."""
+
+    def run() -> int:
+        if damping is not None and damping not in DAMPING:
+            typer.echo(f"rssmc: --damping must be {' or '.join(DAMPING)}, not {damping}",
+                       err=True)
+            return EXIT_USAGE
+        if video is not None and video.suffix.lower() != ".mp4":
+            typer.echo(f"rssmc: --video writes an MP4 file: {video} does not end in .mp4",
+                       err=True)
+            return EXIT_USAGE
+        return _run(file, output, until, switches, damping, viewer, video, trace, seed,
+                    format, quiet)
+
+    guarded(run)
+
+
+def _show(comp: Compilation, diags: list[Diagnostic], fmt: Format) -> None:
+    from rssm_dsl.diagnostics.render import render_text
+
+    if diags and fmt is Format.text:
+        typer.echo(render_text(diags, comp.program.line), err=True)
+
+
+def _run(file: Path, output: Path | None, until: float, switches: int, damping: str | None,
+         viewer: bool, video: Path | None, trace: Path | None, seed: int, fmt: Format,
+         quiet: bool) -> int:
+    from rssm_dsl.diagnostics import Diagnostic
+    from rssm_dsl.emit.write import write_outputs
+    from rssm_dsl.pipeline import compile_file
+    from rssm_dsl.run import RunError, RunOptions, output_files, run_experiment, summary_text
+    from rssm_dsl.run.report import summary_dict
+    from rssm_dsl.run.video import choose_backend
+    from rssm_dsl.run.viewer import Viewer, display_problem
+
+    if video is not None:
+        choose_backend()                  # before anything imports mujoco
+    comp = compile_file(file)
+    if not comp.ok or comp.system is None:
+        report(comp, fmt)
+        return EXIT_ERRORS
+    if comp.diagnostics and fmt is Format.text and not quiet:
+        report(comp, fmt)
+    span = comp.system.span
+    warnings: list[Diagnostic] = []
+    observers: list[Any] = []
+    show: Viewer | None = None
+    if viewer:
+        problem = display_problem()
+        if problem is not None:
+            warnings.append(Diagnostic("W872", problem, span))
+            _show(comp, warnings[-1:], fmt)
+        else:
+            show = Viewer()
+            observers.append(show)
+    options = RunOptions(until=until, switches=switches, damping=damping, seed=seed,
+                         trace=trace, keep_q=video is not None, observers=tuple(observers))
+    try:
+        exp = run_experiment(comp, options)
+    except RunError as e:
+        _show(comp, e.diagnostics, fmt)
+        if fmt is Format.json:
+            typer.echo(json.dumps({"reason": "setup", "diagnostics":
+                                   [d.to_json() for d in e.diagnostics]}, indent=2))
+        return EXIT_USAGE if e.usage else EXIT_ERRORS
+    finally:
+        if show is not None:
+            show.close()
+    if show is not None and show.problem is not None:
+        warnings.append(Diagnostic("W872", show.problem, span))
+        _show(comp, warnings[-1:], fmt)
+    _show(comp, list(exp.diagnostics), fmt)
+
+    target = output if output is not None else Path("out") / f"{file.stem}-run"
+    written = write_outputs(target, output_files(exp))
+    video_note = ""
+    if video is not None:
+        from rssm_dsl.run.video import write_video
+
+        result = write_video(exp, video)
+        if result.problem is not None:
+            warnings.append(Diagnostic("W873", result.problem, span))
+            _show(comp, warnings[-1:], fmt)
+        else:
+            video_note = f", {result.frames} frames to {video}"
+
+    if fmt is Format.json:
+        data = summary_dict(exp)
+        data["outputs"] = [str(p) for p in written]
+        data["video"] = str(video) if video is not None and video_note else None
+        data["warnings"] = [d.to_json() for d in warnings]
+        typer.echo(json.dumps(data, indent=2))
+    elif not quiet:
+        typer.echo(summary_text(exp))
+        typer.echo(f"  wrote      {', '.join(p.name for p in written)} to {target}"
+                   f"{video_note}")
+        if trace is not None:
+            typer.echo(f"  trace      {trace}")
+    if exp.reason == "interrupted":
+        return EXIT_INTERRUPTED
+    if not exp.ok:
+        if fmt is Format.text:
+            typer.echo(f"{file}: {exp.message}", err=True)
+        return EXIT_ERRORS
+    return EXIT_OK
+
+
+def register(app: typer.Typer) -> None:
+    app.command("run")(run_cmd)
