@@ -127,6 +127,8 @@ def lean_ring_system(n: int) -> str:
         ring = n > 1
         ring_decl = (f"      output to_next: float to a{nxt}.c nonblocking\n"
                      f"      input from_prev: float from a{prev}.c blocking\n") if ring else ""
+        ring_update = "        update to_next { to_next := phase }\n" if ring else ""
+        ring_use = " + 0.0 * from_prev" if ring else ""
         effectors = "".join(f"""    effector {side} @ 500 Hz {{
       input target: float from c nonblocking
       output torque: float to E.{side} nonblocking
@@ -151,7 +153,7 @@ def lean_ring_system(n: int) -> str:
 {ring_decl}      behaviour run {{
         update left_target {{ left_target := sin(phase) }}
         update right_target {{ right_target := cos(phase) }}
-{'        update to_next { to_next := phase }' + chr(10) if ring else ''}        update memory {{ phase := phase + 0.01{' + 0.0 * from_prev' if ring else ''} }}
+{ring_update}        update memory {{ phase := phase + 0.01{ring_use} }}
         terminal never when false
       }}
       initial run

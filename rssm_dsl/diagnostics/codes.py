@@ -80,8 +80,10 @@ CODES: tuple[Code, ...] = (
     Code("W604", "switch-overlap", _W, "after a behaviour ends, two switch conditions may hold at once"),
     Code("W605", "unreachable-behaviour", _W, "a behaviour no switch leads to"),
     Code("E606", "arrangement-incomplete", _E, "a send or receive arrangement misses a buffer"),
-    Code("E607", "arrangement-duplicate", _E, "a buffer appears twice in an arrangement or not a buffer of that direction"),
-    Code("E608", "condition-out-of-scope", _E, "a terminal or error condition used outside the switches of its behaviour"),
+    Code("E607", "arrangement-duplicate", _E,
+         "a buffer appears twice in an arrangement or not a buffer of that direction"),
+    Code("E608", "condition-out-of-scope", _E,
+         "a terminal or error condition used outside the switches of its behaviour"),
     Code("E609", "no-behaviours", _E, "a subsystem without behaviours"),
     Code("E610", "duplicate-arrangement", _E, "two send or two receive declarations in a behaviour"),
     # usage warnings
