@@ -301,7 +301,7 @@ def test_circle_helpers() -> None:
     # A negative phase rate runs clockwise seen from above: (p - c) x v points down.
     p = circle_point(centre, 0.05, 0.3)
     assert np.cross(p - centre, circle_velocity(0.05, 0.3, -1.0))[2] < 0.0
-    assert np.allclose(circle_point(centre, 0.05, 0.0, "yz"), [*centre, 0.0, 0.05, 0.0])
+    assert np.allclose(circle_point(centre, 0.05, 0.0, "yz"), centre + np.array([0.0, 0.05, 0.0]))
 
 
 def test_cw_then_ccw_phase_profile() -> None:
