@@ -124,7 +124,7 @@ def test_user_text_with_markup_survives_as_text(svgs: dict[str, str]) -> None:
     svg = svgs[files["P^f[1,c,ccw,2]"]]
     nodes = _nodes(svg)
     op = hpn.places["p[1,c,ccw,2,1]"].operation
-    assert op is not None and ">=" in op.text  # `phase >= 2.0 * pi`
+    assert op is not None and "%" in op.text  # `phase := phase % (2.0 * pi) + ...`
     tip = nodes["p[1,c,ccw,2,1]"][1].find(".//svg:a", NS)
     assert tip is not None and op.text in (tip.get(f"{{{NS['xlink']}}}title") or "")
 
