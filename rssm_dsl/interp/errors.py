@@ -23,6 +23,17 @@ class EvalError(Exception):
         return Diagnostic(self.code, self.message, self.span, self.hint, self.related)
 
 
+class StopSimulation(BaseException):
+    """Raised by a device or an observer of one to end the run cleanly, with the reason and
+    message the run's result and the trace's `end` event carry. It derives from BaseException
+    so that the error handling of operations (E802) never mistakes it for a failure."""
+
+    def __init__(self, reason: str, message: str) -> None:
+        super().__init__(message)
+        self.reason = reason
+        self.message = message
+
+
 class SetupError(Exception):
     """The simulation cannot start: the diagnostics say why (bindings, devices, options)."""
 

@@ -32,7 +32,7 @@ from rssm_dsl.hpn.flat import Role
 from rssm_dsl.interp.clock import SimClock
 from rssm_dsl.interp.codegen import FiringCode
 from rssm_dsl.interp.engine import TokenGame, UnsafeFiring
-from rssm_dsl.interp.errors import EvalError
+from rssm_dsl.interp.errors import EvalError, StopSimulation
 from rssm_dsl.interp.program import Runtime
 from rssm_dsl.interp.state import SubsystemState
 from rssm_dsl.interp.summary import Snapshot, snapshot
@@ -71,6 +71,7 @@ class Blocked:
 @dataclass
 class RunResult:
     reason: str            # steps | until | finished | deadlock | error | interrupted | replayed
+                           # (or what a StopSimulation raised by a device says)
     message: str
     steps: int
     time: float            # seconds, simulated or wall-clock
@@ -84,7 +85,8 @@ class RunResult:
 
     @property
     def ok(self) -> bool:
-        return self.reason in ("steps", "until", "finished", "interrupted", "replayed")
+        return self.reason in ("steps", "until", "finished", "interrupted", "replayed",
+                               "stopped", "switches")
 
 
 class _Stop(Exception):
@@ -276,6 +278,8 @@ class Simulator:
                 steps, reason, message = self._run_concurrent()
         except _Stop as stop:
             steps, reason, message, diag = rt.step, stop.reason, stop.message, stop.diagnostic
+        except StopSimulation as stop:
+            steps, reason, message = rt.step, stop.reason, stop.message
         except KeyboardInterrupt:
             steps, reason, message = rt.step, "interrupted", "interrupted (Ctrl-C)"
         if diag is not None:

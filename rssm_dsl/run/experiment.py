@@ -5,7 +5,6 @@ one clockwise and one counter-clockwise circle) or the time limit, and collect t
 
 from __future__ import annotations
 
-import json
 import time
 from collections.abc import Callable
 from dataclasses import dataclass, field
@@ -80,27 +79,6 @@ class Experiment:
         return self.simulated / self.cpu if self.cpu > 0 else float("inf")
 
 
-def _amend_trace_end(path: Path, reason: str, message: str) -> None:
-    """The run was ended by an observer, which the interpreter reports as a Ctrl-C: give the
-    trace's last event (``end``) the real reason."""
-    with path.open("rb+") as f:
-        size = f.seek(0, 2)
-        tail_start = max(0, size - 65536)
-        f.seek(tail_start)
-        tail = f.read()
-        cut = tail.rstrip(b"\n").rfind(b"\n") + 1
-        try:
-            event = json.loads(tail[cut:])
-        except ValueError:
-            return
-        if event.get("event") != "end":
-            return
-        event["reason"], event["message"] = reason, message
-        f.seek(tail_start + cut)
-        f.truncate()
-        f.write(json.dumps(event, separators=(",", ":")).encode("utf-8") + b"\n")
-
-
 def _device_class() -> type[Any]:
     obj = resolve(DEVICE_BINDING, None)
     assert isinstance(obj, type)
@@ -169,15 +147,6 @@ def run_experiment(comp: Compilation, options: RunOptions) -> Experiment:
         if tracer is not None:
             tracer.close()
     reason, message = result.reason, result.message
-    stopped_by = [m for m in (getattr(o, "stop_message", None) for o in options.observers) if m]
-    if recorder.stopped:
-        reason = "switches"
-        message = (f"{rig.control} switched behaviours {len(recorder.switches)} times by "
-                   f"t = {result.time:g} s")
-    elif stopped_by and result.reason == "interrupted":
-        reason, message = "stopped", stopped_by[0]
-    if options.trace is not None and reason != result.reason:
-        _amend_trace_end(options.trace, reason, message)
     samples = recorder.samples()
     params = {p.name: effector.vars[p.name] for p in effector.model.params}
     return Experiment(

@@ -12,9 +12,8 @@ control subsystem commands, whatever the effector makes of it, so the tracking e
 the latency of the asynchronous communication.
 
 The recorder also stops the run: after ``stop_after`` behaviour switches of the control
-subsystem (the experiment's cw -> ccw -> cw) it raises :class:`StopRun`, which the interpreter
-ends like a Ctrl-C (it derives from KeyboardInterrupt, which operations do not catch); the
-caller tells the two apart with :attr:`Recorder.stopped`.
+subsystem (the experiment's cw -> ccw -> cw) it raises the interpreter's
+:class:`~rssm_dsl.interp.errors.StopSimulation` with reason ``switches``.
 """
 
 from __future__ import annotations
@@ -26,11 +25,9 @@ from typing import Any
 import numpy as np
 from numpy.typing import NDArray
 
+from rssm_dsl.interp.errors import StopSimulation
+
 FloatArray = NDArray[np.float64]
-
-
-class StopRun(KeyboardInterrupt):
-    """Raised by an observer to end the run cleanly (the interpreter treats it as Ctrl-C)."""
 
 
 @dataclass(frozen=True)
@@ -116,7 +113,8 @@ class Recorder:
             if self._keep_q:
                 self._q.append(state["q"])
         if self.stopped:
-            raise StopRun
+            raise StopSimulation("switches", f"{self._control.model.id} switched behaviours "
+                                 f"{len(self.switches)} times by t = {now / 1e9:g} s")
 
     def samples(self) -> Samples:
         n = len(self._times)

@@ -16,7 +16,7 @@ import time
 import warnings
 from typing import Any
 
-from rssm_dsl.run.recorder import StopRun
+from rssm_dsl.interp.errors import StopSimulation
 from rssm_dsl.run.video import has_display
 
 FRAME = 1.0 / 60.0
@@ -80,7 +80,7 @@ class Viewer:
         self._next = sim + FRAME
         if not self._handle.is_running():
             self.stop_message = f"the viewer window was closed at t = {sim:.3f} s"
-            raise StopRun
+            raise StopSimulation("stopped", self.stop_message)
         self._handle.sync()
         ahead = (sim - self._sim0) - (time.perf_counter() - self._t0)
         if ahead > 0:

@@ -101,3 +101,52 @@ def test_lwr4_impedance_op_matches_the_dynamics_library() -> None:
     tau = impedance(state, sp, 2000.0, 100.0)
     assert tau.shape == (7,) and not tau.flags.writeable
     assert np.allclose(tau, dyn(q, np.zeros(7), sp["position"], sp["velocity"], 2000.0, 100.0))
+
+
+def test_a_device_can_end_the_run_with_its_own_reason(tmp_path: Path) -> None:
+    from rssm_dsl.interp import RunConfig, SimOptions, Simulator, build_runtime
+    from rssm_dsl.pipeline import compile_file
+
+    (tmp_path / "stopper.py").write_text(
+        "from rssm_dsl.interp.device import DeviceBase\n"
+        "from rssm_dsl.interp.errors import StopSimulation\n"
+        "class Stopper(DeviceBase):\n"
+        "    def step(self, dt):\n"
+        "        super().step(dt)\n"
+        "        if self.time >= 0.05:\n"
+        "            raise StopSimulation('enough', f'stopped by the device at {self.time:.2f} s')\n")
+    (tmp_path / "s.rssm").write_text("""
+device effector Valve @ 100 Hz {
+  input open: bool nonblocking
+  binding "stopper:Stopper"
+}
+system s {
+  agent a1 {
+    control c @ 50 Hz {
+      output open: bool to e.v nonblocking
+      behaviour run {
+        update open { open := true }
+        terminal never when false
+      }
+      initial run
+    }
+    effector v @ 100 Hz {
+      input open: bool from c nonblocking
+      output cmd: bool to E.v nonblocking
+      behaviour pass {
+        update cmd { cmd := open }
+        terminal never when false
+      }
+      initial pass
+    }
+    real effector v: Valve
+  }
+}
+""")
+    comp = compile_file(tmp_path / "s.rssm")
+    assert comp.ok, comp.diagnostics
+    rt = build_runtime(comp, RunConfig(base_dir=tmp_path))
+    result = Simulator(rt, SimOptions(until=10.0)).run()
+    assert result.reason == "enough" and result.ok is False
+    assert "stopped by the device at 0.05 s" in result.message
+    assert 0.04 <= result.time <= 0.06
