@@ -98,6 +98,8 @@ CODES: tuple[Code, ...] = (
     Code("E805", "simulation-deadlock", _E, "the simulation reached a marking where nothing can ever fire"),
     Code("E806", "replay-diverged", _E, "a step of a replayed counterexample cannot be fired"),
     Code("E807", "unsafe-firing", _E, "a firing would put a second token into a place"),
+    Code("E808", "time-stands-still", _E,
+         "the simulation fires endlessly without simulated time advancing"),
     # render (rssmc render)
     Code("W850", "graphviz-missing", _W, "Graphviz `dot` is not installed: no SVG figures drawn"),
     Code("E851", "graphviz-failed", _E, "Graphviz `dot` failed to draw a page"),

@@ -38,6 +38,7 @@ from rssm_dsl.interp.state import SubsystemState
 from rssm_dsl.interp.summary import Snapshot, snapshot
 
 PROGRESS_EVERY = 1024          # firings between two looks at the wall clock
+ZENO_FIRINGS = 2_000_000       # firings at one simulated instant before giving up (E808)
 FINISHED = "the system finished (every agent terminated)"
 
 
@@ -197,6 +198,16 @@ class Simulator:
         assert stop.diagnostic is not None
         return stop.diagnostic
 
+    def _zeno(self, firings: int, now_ns: int) -> _Stop:
+        rt = self.rt
+        free = [s.id for s in rt.system.subsystems() if s.frequency is None]
+        msg = (f"simulated time stands still: {firings:,} firings at t = {now_ns / 1e9:g} s"
+               + (f"; subsystems without a frequency: {', '.join(free)}" if free else ""))
+        diag = Diagnostic("E808", msg, rt.system.span,
+                          "give a free-running subsystem a frequency (`@ 100 Hz`) or a "
+                          "blocking receive, so that it waits for its peers")
+        return _Stop("error", msg, diag)
+
     def _deadlock(self) -> _Stop:
         rt, game = self.rt, self.game
         game.recompute_enabled()
@@ -339,6 +350,7 @@ class Simulator:
         eager = self.eager if opt.eager and forced is None else bytearray(len(self.eager))
         steps = 0
         next_look = PROGRESS_EVERY
+        instant, instant_steps = clock.ns, 0     # when simulated time last moved (E808)
         timers: list[tuple[int, int]] = []      # (tick, local step waiting for it)
         local.extend(sorted((u for u in enabled if eager[u]), reverse=True))
         enabled.difference_update(local)         # local steps live on the stack and timers
@@ -360,6 +372,14 @@ class Simulator:
                         return steps, "steps", f"stopped after {steps} firings"
                     if gate is not None:
                         gate.start(clock.ns)
+                    if steps >= next_look:       # the same look as below: local steps
+                        next_look = steps + PROGRESS_EVERY   # alone may spin at one instant
+                        rt.step = steps
+                        self._progress(steps)
+                        if clock.ns != instant:
+                            instant, instant_steps = clock.ns, steps
+                        elif steps - instant_steps > ZENO_FIRINGS:
+                            raise self._zeno(steps - instant_steps, clock.ns)
                     if macros is not None and steps + mlen[u] <= limit:
                         macros[u]()
                         steps += mlen[u]
@@ -399,6 +419,10 @@ class Simulator:
                         next_look = steps + PROGRESS_EVERY
                         rt.step = steps
                         self._progress(steps)
+                        if now != instant:
+                            instant, instant_steps = now, steps
+                        elif steps - instant_steps > ZENO_FIRINGS:
+                            raise self._zeno(steps - instant_steps, now)
                     active = []                  # enabled, due and condition true
                     nxt = -1                     # the next tick of a gated enabled transition
                     for u in enabled:

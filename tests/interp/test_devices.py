@@ -107,7 +107,7 @@ def test_a_device_can_end_the_run_with_its_own_reason(tmp_path: Path) -> None:
     from rssm_dsl.interp import RunConfig, SimOptions, Simulator, build_runtime
     from rssm_dsl.pipeline import compile_file
 
-    (tmp_path / "stopper.py").write_text(
+    (tmp_path / "stop_device.py").write_text(  # module names are per process: keep it unique
         "from rssm_dsl.interp.device import DeviceBase\n"
         "from rssm_dsl.interp.errors import StopSimulation\n"
         "class Stopper(DeviceBase):\n"
@@ -118,7 +118,7 @@ def test_a_device_can_end_the_run_with_its_own_reason(tmp_path: Path) -> None:
     (tmp_path / "s.rssm").write_text("""
 device effector Valve @ 100 Hz {
   input open: bool nonblocking
-  binding "stopper:Stopper"
+  binding "stop_device:Stopper"
 }
 system s {
   agent a1 {
@@ -150,3 +150,36 @@ system s {
     assert result.reason == "enough" and result.ok is False
     assert "stopped by the device at 0.05 s" in result.message
     assert 0.04 <= result.time <= 0.06
+
+
+def test_time_standing_still_is_reported_not_a_hang(tmp_path: Path) -> None:
+    from rssm_dsl.interp import RunConfig, SimOptions, Simulator, build_runtime, scheduler
+    from rssm_dsl.pipeline import compile_file
+
+    (tmp_path / "z.rssm").write_text("""
+system z {
+  agent a1 {
+    control c {
+      memory n: int = 0
+      behaviour spin {
+        update memory { n := n + 1 }
+        terminal never when n < 0
+      }
+      initial spin
+      switch spin -> spin otherwise
+    }
+  }
+}
+""")
+    comp = compile_file(tmp_path / "z.rssm")
+    assert comp.ok, comp.diagnostics
+    rt = build_runtime(comp, RunConfig(base_dir=tmp_path))
+    old = scheduler.ZENO_FIRINGS
+    scheduler.ZENO_FIRINGS = 20_000        # keep the test short; the default is 2 million
+    try:
+        result = Simulator(rt, SimOptions(until=1.0)).run()
+    finally:
+        scheduler.ZENO_FIRINGS = old
+    assert result.reason == "error"
+    assert [d.code for d in result.diagnostics] == ["E808"]
+    assert "subsystems without a frequency: a1.c" in result.message
