@@ -26,6 +26,7 @@ from rssm_dsl.semantics.typecheck import ExprChecker, Scope, Symbol, did_you_mea
 from rssm_dsl.semantics.types import BOOL, Type, assignable
 from rssm_dsl.source import Span
 from rssm_dsl.syntax import ast
+from rssm_dsl.syntax.walk import names
 
 MAX_INPUTS = 12
 MEMORY = "memory"
@@ -205,7 +206,7 @@ class BehaviourPass:
             errors = sum(d.is_error for d in self.bag.items)
             self.checker.check(case.condition, self.scope(new_allowed=True), BOOL)
             if (sum(d.is_error for d in self.bag.items) > errors
-                    or any(n.name in self.unresolved for n in _names(case.condition))):
+                    or any(n.name in self.unresolved for n in names(case.condition))):
                 broken = True
                 continue
             try:
@@ -429,7 +430,7 @@ class BehaviourPass:
         scope = self.scope()
         for c in source.conditions:
             scope.extra[c.name] = Symbol("condition", BOOL, c.span)
-        for name in _names(e):
+        for name in names(e):
             if scope.lookup(name.name) is None and name.name in self.all_conditions:
                 self.bag.error("E608", f"'{name.name}' is a condition of behaviour "
                                f"'{self.all_conditions[name.name]}', not of '{source.name}'",
@@ -437,26 +438,3 @@ class BehaviourPass:
                                "behaviour only")
                 return
         self.checker.expect(e, scope, BOOL, "a switch condition")
-
-
-def _names(e: ast.Expr) -> list[ast.Name]:
-    out: list[ast.Name] = []
-    stack: list[ast.Expr] = [e]
-    while stack:
-        x = stack.pop()
-        match x:
-            case ast.Name():
-                out.append(x)
-            case ast.FieldAccess() | ast.Unary():
-                stack.append(x.value if isinstance(x, ast.FieldAccess) else x.operand)
-            case ast.Index():
-                stack += [x.value, x.index]
-            case ast.Binary():
-                stack += [x.left, x.right]
-            case ast.IfExpr():
-                stack += [x.condition, x.then, x.otherwise]
-            case ast.Call() | ast.ArrayLit():
-                stack += list(x.args if isinstance(x, ast.Call) else x.items)
-            case ast.RecordLit():
-                stack += [v for _, v in x.fields]
-    return out

@@ -6,6 +6,7 @@ from collections.abc import Iterator
 
 from rssm_dsl.semantics.checks.context import CheckContext
 from rssm_dsl.syntax import ast
+from rssm_dsl.syntax.walk import names
 
 
 def _exprs(decl: ast.SubsystemDecl) -> Iterator[tuple[ast.Expr, str | None]]:
@@ -44,29 +45,7 @@ def _exprs(decl: ast.SubsystemDecl) -> Iterator[tuple[ast.Expr, str | None]]:
 def names_read(decl: ast.SubsystemDecl) -> set[str]:
     out: set[str] = set()
     for root, own in _exprs(decl):
-        stack = [root]
-        while stack:
-            e = stack.pop()
-            match e:
-                case ast.Name():
-                    if e.name != own:
-                        out.add(e.name)
-                case ast.FieldAccess():
-                    stack.append(e.value)
-                case ast.Unary():
-                    stack.append(e.operand)
-                case ast.Index():
-                    stack += [e.value, e.index]
-                case ast.Binary():
-                    stack += [e.left, e.right]
-                case ast.IfExpr():
-                    stack += [e.condition, e.then, e.otherwise]
-                case ast.Call():
-                    stack += list(e.args)
-                case ast.ArrayLit():
-                    stack += list(e.items)
-                case ast.RecordLit():
-                    stack += [v for _, v in e.fields]
+        out.update(n.name for n in names(root) if n.name != own)
     return out
 
 
