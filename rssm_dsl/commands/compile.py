@@ -30,7 +30,8 @@ def compile_cmd(
     file: FileArg,
     output: Annotated[Path | None, typer.Option("--output", "-o",
                       help="Output folder (default: out/<file name>).")] = None,
-    emit: Annotated[str, typer.Option(help="Comma-separated outputs: json, dump, dot, pnml.")]
+    emit: Annotated[str, typer.Option(help="Comma-separated outputs: json, dump, dot, pnml, "
+                                       "pnml-paged, cpn.")]
     = "json,dump,dot,pnml",
     format: FormatOpt = Format.text,
     quiet: Annotated[bool, typer.Option("--quiet", "-q", help="Print nothing on success.")]

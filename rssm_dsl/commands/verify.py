@@ -33,8 +33,9 @@ def verify_cmd(
                               help="Look for subsystems that can get stuck while the rest "
                                    "keeps running.")] = True,
     cross_check: Annotated[bool, typer.Option(
-        "--cross-check", help="Also run SPIN (deadlock, safeness) and 4ti2 (P-semiflows) when "
-                              "installed, and compare their verdicts with ours.")] = False,
+        "--cross-check", help="Also run SPIN (deadlock, safeness), 4ti2 (P-semiflows) and, on "
+                              "small nets, cpncheck (the hierarchical .cpn) when installed, "
+                              "and compare their verdicts with ours.")] = False,
     promela: Annotated[Path | None, typer.Option(help="Write the net as Promela to this file.")]
     = None,
     show_invariants: Annotated[bool, typer.Option(
@@ -80,7 +81,7 @@ def verify_cmd(
         extra: dict[str, Any] = {}
         text_extra: list[str] = []
         if cross_check:
-            extra, text_extra = _cross_check(net, result)
+            extra, text_extra = _cross_check(net, result, comp.hpn)
         if format is Format.json:
             import json
 
@@ -98,8 +99,12 @@ def verify_cmd(
     guarded(run)
 
 
-def _cross_check(net: Any, result: Any) -> tuple[dict[str, Any], list[str]]:
-    """SPIN and 4ti2 on the same flat net; their answers beside ours."""
+CPNCHECK_MAX_STATES = 5_000
+
+
+def _cross_check(net: Any, result: Any, hpn: Any = None) -> tuple[dict[str, Any], list[str]]:
+    """SPIN and 4ti2 on the same flat net, cpncheck on the unflattened HPN (small nets
+    only); their answers beside ours."""
     from rssm_dsl.verify.fourtitwo import semiflows_4ti2
     from rssm_dsl.verify.promela import run_spin
 
@@ -129,6 +134,32 @@ def _cross_check(net: Any, result: Any) -> tuple[dict[str, Any], list[str]]:
                      f"(ours: {len(result.invariants)}) in {fti.seconds:.2f} s")
         out["4ti2"] = {"ran": True, "semiflows": len(fti.semiflows),
                        "ours": len(result.invariants), "seconds": round(fti.seconds, 3)}
+    # cpncheck expands the hierarchy of the .cpn export itself: it confirms our flattening
+    if hpn is None or result.method != "full" or not result.complete:
+        why = "no full exploration of ours to compare with" if hpn is not None else "no HPN"
+        lines.append(f"  cpncheck: not run ({why})")
+        out["cpncheck"] = {"ran": False, "message": why}
+    elif result.states >= CPNCHECK_MAX_STATES:
+        lines.append(f"  cpncheck: not run (too large: {result.states:,} states, limit "
+                     f"{CPNCHECK_MAX_STATES:,})")
+        out["cpncheck"] = {"ran": False, "message": "too large"}
+    else:
+        from rssm_dsl.verify.cpncheck_oracle import run_cpncheck
+
+        cpn = run_cpncheck(hpn, max_states=2 * CPNCHECK_MAX_STATES)
+        if not cpn.ran:
+            lines.append(f"  cpncheck: not run ({cpn.message})")
+            out["cpncheck"] = {"ran": False, "message": cpn.message}
+        else:
+            agree = (cpn.complete and cpn.states == result.states
+                     and cpn.deadlock_free == result.deadlock_free
+                     and cpn.unsafe == (result.safe is False))
+            lines.append(f"  cpncheck (hierarchical .cpn): {cpn.states:,} states, "
+                         f"{cpn.deadlocks} deadlock(s), unsafe={cpn.unsafe} in "
+                         f"{cpn.seconds:.2f} s: {'agrees' if agree else 'DISAGREES'}")
+            out["cpncheck"] = {"ran": True, "states": cpn.states, "deadlocks": cpn.deadlocks,
+                               "unsafe": cpn.unsafe, "complete": cpn.complete,
+                               "seconds": round(cpn.seconds, 3), "agrees": agree}
     return out, lines
 
 
