@@ -37,6 +37,17 @@ class FlatPlace:
     subsystem: str | None = None   # qualified subsystem ("a1.c") owning the place; None if shared
     behaviour: str | None = None   # behaviour owning the place, if any
     channel: str | None = None     # channel id for fusion places of a channel
+    page: str | None = None        # the IR page it lies on (a fusion set: its consumer's page)
+
+
+@dataclass(frozen=True, slots=True)
+class FlatPage:
+    """A page of the HPN the flat net came from: the hierarchy its places lie in."""
+
+    id: str
+    parent: str | None
+    kind: str                      # ir.PageKind value: system, agent, subsystem, device, ...
+    owner: str                     # the system, agent, subsystem or device it belongs to
 
 
 @dataclass(frozen=True, slots=True)
@@ -64,6 +75,7 @@ class FlatNet:
     initial: frozenset[int]
     final: frozenset[int]          # places whose marking means the system finished
     subsystems: tuple[str, ...] = field(default=())  # qualified names, for progress checks
+    pages: tuple[FlatPage, ...] = field(default=())   # the page hierarchy, parents first
 
     def place(self, name: str) -> FlatPlace:
         for p in self.places:

@@ -5,8 +5,8 @@ is left out. Conditions on data become free choices for the verifier."""
 
 from __future__ import annotations
 
-from rssm_dsl.hpn.flat import FlatNet, FlatPlace, FlatTransition
-from rssm_dsl.hpn.ir import HPN
+from rssm_dsl.hpn.flat import FlatNet, FlatPage, FlatPlace, FlatTransition
+from rssm_dsl.hpn.ir import HPN, PageKind
 
 
 def _subsystem_of(hpn: HPN, page: str) -> tuple[str | None, str | None]:
@@ -27,15 +27,17 @@ def flatten(hpn: HPN) -> FlatNet:
     for n in names:
         if n in hpn.fusions:
             fs = hpn.fusions[n]
+            on = [hpn.pages[hpn.places[m].page] for m in fs.places]
+            consumer = [pg.id for pg in on if pg.kind is PageKind.RECEIVE_BUFFER]
             places.append(FlatPlace(index[n], n, fs.label, fs.span, fs.places, None, None, None,
-                                    fs.channel))
+                                    fs.channel, (consumer or [pg.id for pg in on])[0]))
             continue
         p = hpn.places[n]
         sub, beh = _subsystem_of(hpn, p.page)
         op = p.operation
         places.append(FlatPlace(index[n], n, p.label, p.span, (n,),
                                 n if op is not None else None, sub, beh,
-                                op.channel if op is not None else None))
+                                op.channel if op is not None else None, p.page))
 
     def resolve(node: str, entering: bool) -> str:
         while node in hpn.pages:
@@ -70,4 +72,15 @@ def flatten(hpn: HPN) -> FlatNet:
     final = frozenset({index[flat_of[hpn.pages[hpn.root].out_place]]})
     subsystems = tuple(sorted({p.owner for p in hpn.pages.values()
                                if p.kind.value in ("subsystem", "device")}))
-    return FlatNet(hpn.system, tuple(places), tuple(transitions), initial, final, subsystems)
+    depth: dict[str, int] = {}
+
+    def level(pid: str) -> int:
+        if pid not in depth:
+            parent = hpn.pages[pid].parent
+            depth[pid] = 0 if parent is None else level(parent) + 1
+        return depth[pid]
+
+    hierarchy = tuple(FlatPage(pg.id, pg.parent, pg.kind.value, pg.owner)
+                      for pg in sorted(hpn.pages.values(), key=lambda pg: (level(pg.id), pg.id)))
+    return FlatNet(hpn.system, tuple(places), tuple(transitions), initial, final, subsystems,
+                   hierarchy)

@@ -116,7 +116,7 @@ class VerifyReport:
     invariants_message: str | None
     uncovered_places: tuple[str, ...]          # places the invariants do not prove safe
     # state space
-    method: str                                # "full", "stubborn", "full+stubborn", "none"
+    method: str                                # "full", "stubborn", "compositional", "a+b"
     states: int
     edges: int
     depth: int
@@ -132,6 +132,8 @@ class VerifyReport:
     unreachable_behaviours: tuple[str, ...] | None
     seconds: float
     notes: tuple[str, ...] = field(default=())
+    # subsystems shown to lose progress without a firing sequence (compositional check)
+    progress_lost: tuple[str, ...] = field(default=())
 
     @property
     def exit_code(self) -> int:
@@ -162,6 +164,7 @@ class VerifyReport:
             "unsafe": self.unsafe.to_json() if self.unsafe else None,
             "progress": [c.to_json() for c in self.progress],
             "progress_checked": list(self.progress_checked),
+            "progress_lost_without_trace": list(self.progress_lost),
             "dead_transitions": None if self.dead_transitions is None else
             [_transition_json(t) for t in self.dead_transitions],
             "unreachable_behaviours": None if self.unreachable_behaviours is None else
@@ -192,7 +195,8 @@ def render_text(report: VerifyReport, max_invariants: int = 20) -> str:
         r.progress_ok, "no subsystem with ITERATION transitions to check"
         if not r.progress_checked else "no subsystem can get stuck while the rest keeps "
         f"running ({len(r.progress_checked)} checked)",
-        f"{len(r.progress)} subsystem(s) can get stuck while the rest keeps running",
+        f"{len(r.progress) + len(r.progress_lost)} subsystem(s) can get stuck while the rest "
+        "keeps running",
         "not checked" if not r.progress_checked else "not decided"))
     out.append(f"  states:     {r.states} explored ({r.method}"
                f"{'' if r.complete else ', incomplete'}), {r.edges} firings, depth {r.depth},"
@@ -211,6 +215,11 @@ def render_text(report: VerifyReport, max_invariants: int = 20) -> str:
         out.append("")
         out.append(f"loss of progress: {c.subsystem} never completes an iteration again")
         out += c.lines()
+    for name in r.progress_lost:
+        out.append("")
+        out.append(f"loss of progress: {name} can reach a state from which it never completes "
+                   "an iteration again (shown by the compositional check; no firing sequence "
+                   "was extracted within the limits)")
     out.append("")
     n = len(r.invariants)
     head = f"place invariants: {n}" + ("" if r.invariants_complete else " (incomplete)")

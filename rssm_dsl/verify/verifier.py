@@ -12,9 +12,14 @@ Pipeline:
      verdicts on far fewer states; with ``check_progress`` the search applies the cycle
      proviso and keeps its graph, on which progress is decided (see ``stubborn``); dead
      transitions and unreachable behaviours are not computed (the report says so).
-   - ``"auto"`` (default): full exploration up to ``auto_full_states`` markings (it gives dead
-     transitions and unreachable behaviours too); beyond, the stubborn-set search (as for
-     ``"on"``, up to ``max_states``) takes over.
+   - ``"compositional"``: the compositional check only (``compose``): the net is rebuilt
+     page by page, each piece reduced modulo divergence-preserving branching bisimilarity
+     once what it hides is hidden. Exact safeness, deadlock and progress verdicts and the
+     reachable behaviours, without counterexamples and without dead transitions.
+   - ``"auto"`` (default): full exploration up to ``auto_full_states`` markings (and
+     ``auto_full_words`` of memory; it gives dead transitions and unreachable behaviours
+     too); beyond, the compositional check; the stubborn-set search (as for ``"on"``) runs
+     when that gives no verdict, or to find a counterexample for a violation it found.
 3. Verdict: *violated* when any violation was found (a found deadlock or unsafe firing is real
    even if the search was cut short); *verified* when safeness, deadlock freedom and (when
    checked) progress are all established; otherwise *inconclusive*, with the reason in the
@@ -27,9 +32,11 @@ a final marking is the system having finished, not an error.
 from __future__ import annotations
 
 import time
+from collections.abc import Callable
 from dataclasses import dataclass
 
 from rssm_dsl.hpn.flat import FlatNet
+from rssm_dsl.verify.compose.check import ComposeResult, compose_check
 from rssm_dsl.verify.invariants import DEFAULT_MAX_ROWS, InvariantResult, place_invariants
 from rssm_dsl.verify.netbits import NetBits, bits, to_mask
 from rssm_dsl.verify.progress import ProgressResult, check_progress, subsystems_of
@@ -43,22 +50,28 @@ from rssm_dsl.verify.report import (
 from rssm_dsl.verify.statespace import ProgressCallback, SearchResult, Trace, explore_full
 from rssm_dsl.verify.stubborn import explore_reduced
 
+REDUCTIONS = ("auto", "on", "off", "compositional")
+
 
 @dataclass(frozen=True)
 class VerifyOptions:
-    max_states: int = 5_000_000          # per exploration
-    auto_full_states: int = 1_000_000    # "auto": the full search's share before stubborn sets
+    max_states: int = 5_000_000          # per exploration (per composition, compositionally)
+    auto_full_states: int = 1_000_000    # "auto": the full search's share before the others
+    auto_full_words: int = 16_000_000    # ... and its memory share, in 64-bit marking words
     time_limit: float | None = 300.0     # seconds for the whole verification
-    reduction: str = "auto"              # "auto", "on" (stubborn sets only), "off" (full only)
+    reduction: str = "auto"              # "auto", "on" (stubborn sets), "off" (full only),
+    #                                      "compositional"
     invariants: bool = True
     max_invariant_rows: int = DEFAULT_MAX_ROWS
+    invariant_time: float = 5.0          # seconds at most for the place invariants
     check_progress: bool = True
     max_counterexamples: int = 3
     on_progress: ProgressCallback | None = None
 
     def __post_init__(self) -> None:
-        if self.reduction not in ("auto", "on", "off"):
-            raise ValueError(f"reduction must be 'auto', 'on' or 'off', not {self.reduction!r}")
+        if self.reduction not in REDUCTIONS:
+            raise ValueError(f"reduction must be one of {', '.join(REDUCTIONS)}, "
+                             f"not {self.reduction!r}")
 
 
 def verify(net: FlatNet, options: VerifyOptions | None = None) -> VerifyReport:
@@ -76,7 +89,8 @@ def verify(net: FlatNet, options: VerifyOptions | None = None) -> VerifyReport:
     if opts.invariants:
         budget = remaining()
         inv = place_invariants(net, opts.max_invariant_rows,
-                               None if budget is None else budget / 3)
+                               opts.invariant_time if budget is None
+                               else min(budget / 3, opts.invariant_time))
         if inv.message:
             notes.append(f"place invariants: {inv.message}")
     safe_mask = to_mask(inv.safe_places) if inv else 0
@@ -84,28 +98,38 @@ def verify(net: FlatNet, options: VerifyOptions | None = None) -> VerifyReport:
 
     full: SearchResult | None = None
     reduced: SearchResult | None = None
+    comp: ComposeResult | None = None
     if opts.reduction in ("auto", "off"):
-        limit = (min(opts.max_states, opts.auto_full_states) if opts.reduction == "auto"
-                 else opts.max_states)
+        limit = opts.max_states
+        if opts.reduction == "auto":
+            limit = min(limit, opts.auto_full_states, max(10_000, opts.auto_full_words // nb.nwords))
         full = explore_full(nb, limit, remaining(), keep_graph=opts.check_progress,
                             max_counterexamples=opts.max_counterexamples,
                             progress=opts.on_progress)
         if full.stopped and full.unsafe is None:
             notes.append(f"full exploration: {full.stopped}")
-        if (opts.reduction == "auto" and not full.complete and full.unsafe is None
-                and not full.deadlocks and "state limit" in (full.stopped or "")):
-            reduced = explore_reduced(nb, safe_mask, opts.max_states, remaining(),
-                                      opts.max_counterexamples, opts.on_progress,
-                                      for_progress=opts.check_progress)
-            notes.append(f"stubborn-set exploration took over: {reduced.states} states")
-    else:
+    if opts.reduction == "compositional" or (
+            opts.reduction == "auto" and full is not None and not full.complete
+            and full.unsafe is None and not full.deadlocks
+            and "state limit" in (full.stopped or "")):
+        comp, comp_notes = _compositional(net, nb, opts, remaining())
+        notes += comp_notes
+    if opts.reduction == "on" or (
+            opts.reduction == "auto" and full is not None and not full.complete
+            and full.unsafe is None and not full.deadlocks and (
+                comp is None or not comp.complete or comp.safe is False
+                or comp.deadlock_free is False)):
+        # stubborn sets: the verdict when nothing else gave one, else a counterexample
         reduced = explore_reduced(nb, safe_mask, opts.max_states, remaining(),
                                   opts.max_counterexamples, opts.on_progress,
-                                  for_progress=opts.check_progress)
+                                  for_progress=opts.check_progress and comp is None)
+        notes.append(f"stubborn-set exploration: {reduced.states} states")
     deciding = reduced if reduced is not None else full
-    assert deciding is not None
     if reduced is not None and reduced.stopped and reduced.unsafe is None:
         notes.append(f"stubborn-set exploration: {reduced.stopped}")
+    if deciding is None:          # compositional only
+        deciding = SearchResult("none", 0, 0, 0, False, None, 0.0, [], 0, 0, None)
+    by_comp = comp is not None and comp.complete
 
     # safeness
     unsafe_trace = deciding.unsafe or (full.unsafe if full else None)
@@ -114,11 +138,15 @@ def verify(net: FlatNet, options: VerifyOptions | None = None) -> VerifyReport:
     if unsafe_trace is not None:
         safe, safe_by = False, ("full exploration" if deciding is full else
                                 "stubborn-set exploration")
+    elif comp is not None and comp.safe is False:
+        safe, safe_by = False, "the compositional check"
     elif safe_by_invariants:
         safe, safe_by = True, "place invariants"
     elif deciding.complete:
         safe, safe_by = True, ("full exploration" if deciding is full else
                                "stubborn-set exploration")
+    elif comp is not None and comp.safe:
+        safe, safe_by = True, "the compositional check"
     else:
         safe, safe_by = None, None
 
@@ -128,7 +156,11 @@ def verify(net: FlatNet, options: VerifyOptions | None = None) -> VerifyReport:
     deadlock_free: bool | None
     if dead_count:
         deadlock_free = False
-    elif deciding.complete:
+    elif comp is not None and comp.deadlock_free is False:
+        deadlock_free, dead_count = False, 1
+        notes.append("the compositional check shows a reachable deadlock; no firing sequence "
+                     "leading to it was found within the limits")
+    elif deciding.complete or (comp is not None and comp.deadlock_free):
         deadlock_free = True
     else:
         deadlock_free = None
@@ -136,13 +168,20 @@ def verify(net: FlatNet, options: VerifyOptions | None = None) -> VerifyReport:
     # progress, dead transitions, unreachable behaviours: full graph only
     progress_result: ProgressResult | None = None
     progress_ok: bool | None = None
+    progress_lost: tuple[str, ...] = ()
+    progress_checked: tuple[str, ...] = ()
     dead_transitions = None
     unreachable = None
     if full is not None and full.complete:
         assert full.fired is not None and full.ever_marked is not None
         dead_transitions = tuple(t for t in net.transitions if t.index not in full.fired)
-        unreachable = _unreachable_behaviours(net, full.fired, full.ever_marked)
-    elif reduced is not None and reduced.complete:
+        fired, ever = full.fired, full.ever_marked
+        unreachable = _unreachable_behaviours(net, lambda key: key in _reached(net, fired, ever))
+    elif comp is not None and comp.detail_complete:
+        unreachable = _unreachable_behaviours(net, lambda key: key in comp.reached)
+        notes.append("dead transitions need the full state space (the compositional check "
+                     "decides reachable behaviours only)")
+    elif (reduced is not None and reduced.complete) or by_comp:
         notes.append("dead transitions and unreachable behaviours need the full state space")
     graph = (full.graph if full is not None and full.complete else
              reduced.graph if reduced is not None and reduced.complete else None)
@@ -153,6 +192,10 @@ def verify(net: FlatNet, options: VerifyOptions | None = None) -> VerifyReport:
             if progress_result.skipped:
                 notes.append("no ITERATION transition, progress not checked: "
                              + ", ".join(progress_result.skipped))
+        elif comp is not None and comp.detail_complete:
+            progress_ok = not comp.progress_lost
+            progress_lost = tuple(comp.progress_lost)
+            progress_checked = tuple(comp.progress_checked)
         else:
             notes.append("progress not decided: the state space was not explored completely")
 
@@ -175,8 +218,8 @@ def verify(net: FlatNet, options: VerifyOptions | None = None) -> VerifyReport:
     else:
         verdict = Verdict.INCONCLUSIVE
 
-    method = ("full+stubborn" if full is not None and reduced is not None else
-              "full" if full is not None else "stubborn")
+    method = "+".join(name for name, used in (("full", full), ("compositional", comp),
+                                              ("stubborn", reduced)) if used is not None)
     return VerifyReport(
         system=net.system,
         verdict=verdict,
@@ -189,17 +232,18 @@ def verify(net: FlatNet, options: VerifyOptions | None = None) -> VerifyReport:
                                for p in (inv.uncovered(nb.nplaces) if inv else
                                          range(nb.nplaces))),
         method=method,
-        states=deciding.states,
+        states=comp.states if by_comp and comp is not None else deciding.states,
         edges=deciding.edges,
         depth=deciding.depth,
-        complete=deciding.complete,
+        complete=deciding.complete or by_comp,
         deadlock_free=deadlock_free,
         deadlock_count=dead_count,
         deadlocks=tuple(_deadlock_cx(net, nb, t) for t in dead_traces),
         unsafe=_unsafe_cx(net, nb, unsafe_trace) if unsafe_trace else None,
         progress_ok=progress_ok,
         progress=tuple(progress_cx),
-        progress_checked=progress_result.checked if progress_result else (),
+        progress_checked=progress_result.checked if progress_result else progress_checked,
+        progress_lost=progress_lost,
         dead_transitions=dead_transitions,
         unreachable_behaviours=unreachable,
         seconds=time.monotonic() - start,
@@ -232,23 +276,45 @@ def _invariant_lines(net: FlatNet, inv: InvariantResult | None) -> tuple[Invaria
                  for k, i in enumerate(inv.invariants))
 
 
-def _unreachable_behaviours(net: FlatNet, fired: frozenset[int], ever: int) -> tuple[str, ...]:
-    seen: dict[tuple[str | None, str], bool] = {}
+def _reached(net: FlatNet, fired: frozenset[int], ever: int) -> set[tuple[str | None, str]]:
+    """The behaviours (subsystem, behaviour) with a transition fired or a place marked."""
+    out: set[tuple[str | None, str]] = set()
+    for p in net.places:
+        if p.behaviour is not None and ever >> p.index & 1:
+            out.add((p.subsystem, p.behaviour))
+    for t in net.transitions:
+        if t.behaviour is not None and t.index in fired:
+            out.add((t.subsystem, t.behaviour))
+    return out
+
+
+def _unreachable_behaviours(net: FlatNet, reached: Callable[[tuple[str | None, str]], bool],
+                            ) -> tuple[str, ...]:
     where: dict[tuple[str | None, str], str] = {}
     for p in net.places:
         if p.behaviour is not None:
-            key = (p.subsystem, p.behaviour)
-            seen[key] = seen.get(key, False) or bool(ever >> p.index & 1)
-            where.setdefault(key, p.span.location)
+            where.setdefault((p.subsystem, p.behaviour), p.span.location)
     for t in net.transitions:
         if t.behaviour is not None:
-            key = (t.subsystem, t.behaviour)
-            seen[key] = seen.get(key, False) or t.index in fired
-            where.setdefault(key, t.span.location)
+            where.setdefault((t.subsystem, t.behaviour), t.span.location)
     out = []
-    for key, reached in seen.items():
-        if not reached:
+    for key, location in where.items():
+        if not reached(key):
             sub, beh = key
             name = beh if sub is None or beh.startswith(f"{sub}.") else f"{sub}: {beh}"
-            out.append(f"{name} ({where[key]})")
+            out.append(f"{name} ({location})")
     return tuple(out)
+
+
+def _compositional(net: FlatNet, nb: NetBits, opts: VerifyOptions, budget: float | None,
+                   ) -> tuple[ComposeResult, list[str]]:
+    """The compositional check (``compose``) within ``budget`` seconds."""
+    deadline = None if budget is None else time.monotonic() + budget
+    res = compose_check(net, nb, opts.max_states, deadline, detail=True)
+    notes = [f"compositional check: {res.components} page components, {res.states:,} states "
+             f"built in all, the largest composition {res.largest:,} states"]
+    if res.stopped:
+        notes.append(f"compositional check: {res.stopped}")
+    elif not res.detail_complete:
+        notes.append("compositional check: progress and reachable behaviours not decided")
+    return res, notes

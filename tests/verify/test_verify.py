@@ -82,12 +82,13 @@ def test_final_marking_verified() -> None:
     assert r.verdict is Verdict.VERIFIED
 
 
-def test_state_limit_falls_back_to_stubborn_sets() -> None:
+def test_state_limit_falls_back_to_the_compositional_check() -> None:
     r = verify(pipeline_ring(8, "BB"), VerifyOptions(auto_full_states=1000))
-    assert r.method == "full+stubborn" and r.states < 1000
+    assert r.method == "full+compositional"
     assert r.deadlock_free is True and r.safe is True and r.progress_ok is True
     assert r.verdict is Verdict.VERIFIED and r.dead_transitions is None
     assert any("state limit" in n for n in r.notes)
+    assert any("compositional check:" in n for n in r.notes)
     r = verify(pipeline_ring(8, "BB"), VerifyOptions(max_states=100))
     assert r.progress_ok is None and r.verdict is Verdict.INCONCLUSIVE and r.exit_code == 2
 

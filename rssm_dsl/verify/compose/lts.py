@@ -1,0 +1,204 @@
+"""Labelled transition systems and their reduction modulo divergence-preserving branching
+bisimilarity.
+
+An ``Lts`` has states ``0 .. n-1`` (``init`` the initial one), per-state flags (``FINAL``: the
+state's part of the final marking is marked; ``UNSAFE``: a firing put a second token into a
+place, the state is a sink) and edges labelled with an *action*: a flat transition index, or
+``TAU`` (-1) for a hidden transition; ``VIOLATED`` and ``BUSY`` serve the structural assumption
+of ``check``. A divergent state (one that can move silently forever)
+carries a ``TAU`` self-loop, so a state with no edge at all is a real deadlock. Further flags
+(``OBSERVED << i``) record observations of a component's local state, such as "some place
+of this behaviour is marked".
+
+``minimize`` returns the quotient modulo divergence-preserving branching bisimilarity that
+respects the flags. That equivalence is a congruence for the parallel composition and hiding
+used in ``product`` and preserves deadlocks, reachable flags, the visible actions that can
+occur and the branching-time properties without next-step (CTL*-X), which is what the
+compositional check relies on. The algorithm:
+
+1. Collapse the strongly connected components of the silent steps between states with equal
+   flags (iterative Tarjan); a non-trivial component, or a silent self-loop, is divergent.
+   The result is free of silent cycles, and Tarjan numbers components successors-first.
+2. Signature refinement (Blom and Orzan): the signature of a state is the set of
+   ``(action, block)`` pairs it can reach after silent steps inside its own block, a silent
+   step into its own block (inert) being no pair of its own. With components processed
+   successors-first one sweep computes all signatures; the blocks are split by signature
+   until nothing changes. The initial partition separates flags and divergence.
+3. The quotient has one state per block, the non-inert edges, and a silent self-loop on
+   divergent blocks.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+TAU = -1
+FINAL = 1
+UNSAFE = 2          # a firing put a second token into a place: a sink
+VIOLATED = 4        # a page was entered while busy, against the structure assumed: a sink
+BUSY = 8            # some control place of the (sub)tree is marked
+OBSERVED = 16       # first of the observation flags: bit OBSERVED << i for observation i
+SINK = UNSAFE | VIOLATED
+Edges = list[tuple[int, int]]          # (action, target)
+
+
+@dataclass(frozen=True, slots=True)
+class Lts:
+    init: int
+    flags: list[int]
+    out: list[Edges]
+    alphabet: frozenset[int]           # actions still visible (may be a superset of those used)
+
+    @property
+    def size(self) -> int:
+        return len(self.flags)
+
+    @property
+    def edge_count(self) -> int:
+        return sum(len(e) for e in self.out)
+
+    def hide(self, actions: frozenset[int] | set[int]) -> Lts:
+        if not actions:
+            return self
+        out = [[(TAU if a in actions else a, d) for a, d in edges] for edges in self.out]
+        return Lts(self.init, self.flags, out, self.alphabet - actions)
+
+
+def _silent_components(lts: Lts) -> tuple[list[int], int]:
+    """Tarjan over silent edges between states with equal flags, iteratively.
+
+    Returns the component of every state and the number of components; components are
+    numbered in the order Tarjan closes them, so every silent edge leaving a component goes
+    to a lower number."""
+    n = lts.size
+    flags, out = lts.flags, lts.out
+    index = [-1] * n
+    low = [0] * n
+    comp = [-1] * n
+    on_stack = [False] * n
+    stack: list[int] = []
+    counter = 0
+    ncomp = 0
+    for root in range(n):
+        if index[root] >= 0:
+            continue
+        work: list[tuple[int, int]] = [(root, 0)]
+        index[root] = low[root] = counter
+        counter += 1
+        stack.append(root)
+        on_stack[root] = True
+        while work:
+            v, i = work[-1]
+            edges = out[v]
+            fv = flags[v]
+            advanced = False
+            while i < len(edges):
+                a, w = edges[i]
+                i += 1
+                if a != TAU or w == v or flags[w] != fv:
+                    continue
+                if index[w] < 0:
+                    work[-1] = (v, i)
+                    index[w] = low[w] = counter
+                    counter += 1
+                    stack.append(w)
+                    on_stack[w] = True
+                    work.append((w, 0))
+                    advanced = True
+                    break
+                if on_stack[w] and index[w] < low[v]:
+                    low[v] = index[w]
+            if advanced:
+                continue
+            work.pop()
+            if work:
+                u = work[-1][0]
+                if low[v] < low[u]:
+                    low[u] = low[v]
+            if low[v] == index[v]:
+                while True:
+                    w = stack.pop()
+                    on_stack[w] = False
+                    comp[w] = ncomp
+                    if w == v:
+                        break
+                ncomp += 1
+    return comp, ncomp
+
+
+def minimize(lts: Lts) -> Lts:
+    """The quotient of ``lts`` (reachable part) modulo divergence-preserving branching
+    bisimilarity, flags respected."""
+    comp, nc = _silent_components(lts)
+    # collapsed graph, components numbered successors-first (silent edges go to lower ids)
+    cflags = [0] * nc
+    div = [False] * nc
+    size = [0] * nc
+    cout: list[set[tuple[int, int]]] = [set() for _ in range(nc)]
+    for s, edges in enumerate(lts.out):
+        c = comp[s]
+        cflags[c] = lts.flags[s]
+        size[c] += 1
+        targets = cout[c]
+        for a, d in edges:
+            cd = comp[d]
+            if a == TAU and cd == c:
+                div[c] = True          # a silent self-loop or a silent cycle inside c
+            else:
+                targets.add((a, cd))
+    for c in range(nc):
+        if size[c] > 1:
+            div[c] = True
+    edges_of = [list(t) for t in cout]
+    # initial partition: flags and divergence
+    keys: dict[tuple[int, bool], int] = {}
+    block = [keys.setdefault((cflags[c], div[c]), len(keys)) for c in range(nc)]
+    nblocks = len(keys)
+    while True:
+        sigs: list[frozenset[tuple[int, int]]] = [frozenset()] * nc
+        for c in range(nc):
+            bc = block[c]
+            sig: set[tuple[int, int]] = set()
+            for a, d in edges_of[c]:
+                bd = block[d]
+                if a == TAU and bd == bc:
+                    sig |= sigs[d]
+                else:
+                    sig.add((a, bd))
+            sigs[c] = frozenset(sig)
+        new_keys: dict[tuple[int, frozenset[tuple[int, int]]], int] = {}
+        block = [new_keys.setdefault((block[c], sigs[c]), len(new_keys)) for c in range(nc)]
+        if len(new_keys) == nblocks:
+            break
+        nblocks = len(new_keys)
+    # quotient, renumbered from the initial block in breadth-first order
+    qout: list[set[tuple[int, int]]] = [set() for _ in range(nblocks)]
+    qflags = [0] * nblocks
+    qdiv = [False] * nblocks
+    for c in range(nc):
+        b = block[c]
+        qflags[b] = cflags[c]
+        qdiv[b] = div[c]
+        for a, d in edges_of[c]:
+            bd = block[d]
+            if not (a == TAU and bd == b):
+                qout[b].add((a, bd))
+    start = block[comp[lts.init]]
+    order = [start]
+    number = {start: 0}
+    i = 0
+    while i < len(order):
+        b = order[i]
+        i += 1
+        for _, d in sorted(qout[b]):
+            if d not in number:
+                number[d] = len(order)
+                order.append(d)
+    flags = [qflags[b] for b in order]
+    out: list[Edges] = []
+    for b in order:
+        edges = sorted((a, number[d]) for a, d in qout[b])
+        if qdiv[b]:
+            edges.insert(0, (TAU, number[b]))
+        out.append(edges)
+    return Lts(0, flags, out, lts.alphabet)

@@ -1,0 +1,164 @@
+"""The compositional check against full exploration: same safeness, deadlock and progress
+verdicts and the same reachable behaviours, on every example and on generated nets; and the
+pieces it is built from (branching-bisimulation reduction, composition order)."""
+
+from __future__ import annotations
+
+import time
+from pathlib import Path
+
+import pytest
+from netkit import (
+    hpn_like,
+    mode_pair,
+    pipeline_ring,
+    random_product,
+    ring,
+    send_send_deadlock,
+    starved_consumer,
+    terminating_pipeline,
+    unsafe_net,
+)
+
+from rssm_dsl.hpn.flat import FlatNet
+from rssm_dsl.hpn.flatten import flatten
+from rssm_dsl.pipeline import compile_file
+from rssm_dsl.synth import lean_ring_system
+from rssm_dsl.verify import Verdict, VerifyOptions, verify
+from rssm_dsl.verify.compose.check import compose_check
+from rssm_dsl.verify.compose.lts import FINAL, TAU, Lts, minimize
+from rssm_dsl.verify.compose.order import composition_order
+from rssm_dsl.verify.compose.tree import page_tree
+from rssm_dsl.verify.netbits import NetBits
+
+ROOT = Path(__file__).resolve().parents[2]
+EXAMPLES = sorted(p for p in (ROOT / "examples").rglob("*.rssm")
+                  if "diagnostics" not in p.parts)
+
+
+def _net(path: Path) -> FlatNet:
+    comp = compile_file(path)
+    assert comp.ok and comp.hpn is not None
+    return flatten(comp.hpn)
+
+
+def _agree(net: FlatNet, must_complete: bool = True) -> None:
+    full = verify(net, VerifyOptions(reduction="off", time_limit=120))
+    if not full.complete:
+        pytest.skip("full exploration does not finish")
+    res = compose_check(net, NetBits.of(net), 2_000_000, time.monotonic() + 120)
+    if not res.complete:
+        # only the structural assumption may stop it, and then it claims nothing false
+        assert not must_complete, res.stopped
+        assert res.safe in (None, full.safe) and res.deadlock_free in (None, full.deadlock_free)
+        return
+    assert res.safe == full.safe
+    assert res.deadlock_free == full.deadlock_free
+    if full.safe and res.detail_complete and full.progress_ok is not None:
+        assert set(res.progress_lost) == {c.subsystem for c in full.progress}
+        assert set(res.progress_checked) == set(full.progress_checked)
+        lost = set(full.unreachable_behaviours or ())
+        mine = verify(net, VerifyOptions(reduction="compositional"))
+        assert set(mine.unreachable_behaviours or ()) == lost
+
+
+@pytest.mark.parametrize("path", EXAMPLES, ids=lambda p: p.name)
+def test_examples_agree_with_full_exploration(path: Path) -> None:
+    _agree(_net(path))
+
+
+GENERATED = {
+    **{f"mode_pair_{a}_{b}": (lambda a=a, b=b: mode_pair(a, b))
+       for a in (False, True) for b in (False, True)},
+    "send_send_deadlock": lambda: send_send_deadlock(False),
+    "send_send_deadlock_third": lambda: send_send_deadlock(True),
+    "starved_consumer": starved_consumer,
+    "terminating_pipeline": lambda: terminating_pipeline(3),
+    "unsafe_net": unsafe_net,
+    **{f"ring_{n}": (lambda n=n: ring(n)) for n in (2, 3, 4, 5)},
+    "ring_2_tokens": lambda: ring(4, tokens=2),
+    "pipeline_ring_6_BB": lambda: pipeline_ring(6, "BB"),
+    "pipeline_ring_5_NB": lambda: pipeline_ring(5, "NB"),
+    "hpn_like": lambda: hpn_like(),
+    **{f"random_product_{s}": (lambda s=s: random_product(s)) for s in range(12)},
+}
+
+
+@pytest.mark.parametrize("name", sorted(GENERATED))
+def test_generated_nets_agree_with_full_exploration(name: str) -> None:
+    _agree(GENERATED[name](), must_complete=False)
+
+
+@pytest.mark.parametrize("n", [1, 2])
+def test_lean_ring_matches_stubborn_sets(n: int, tmp_path: Path) -> None:
+    path = tmp_path / "lean.rssm"
+    path.write_text(lean_ring_system(n))
+    net = _net(path)
+    mine = verify(net, VerifyOptions(reduction="compositional", check_progress=False))
+    theirs = verify(net, VerifyOptions(reduction="on", check_progress=False))
+    assert mine.verdict is Verdict.VERIFIED and theirs.verdict is Verdict.VERIFIED
+    assert mine.method == "compositional" and mine.complete
+
+
+def test_the_deadlocking_pair_gets_its_counterexample_in_auto_mode() -> None:
+    net = _net(ROOT / "examples" / "verify" / "deadlock_pair.rssm")
+    r = verify(net, VerifyOptions(auto_full_states=10))
+    assert "compositional" in r.method and r.deadlock_free is False
+    assert r.deadlocks, "the stubborn-set search finds the firing sequence"
+
+
+def test_loss_of_progress_without_full_exploration() -> None:
+    net = _net(ROOT / "examples" / "verify" / "progress_triple.rssm")
+    r = verify(net, VerifyOptions(reduction="compositional"))
+    assert r.verdict is Verdict.VIOLATED and r.progress_ok is False
+    assert set(r.progress_lost) == {"left.c", "right.c"}
+
+
+def test_pages_become_a_tree_with_channels_under_the_lowest_common_page() -> None:
+    net = _net(ROOT / "examples" / "relay_blocking.rssm")
+    nodes = page_tree(net, NetBits.of(net))
+    assert nodes[0].kind == "system"
+    covered = 0
+    for n in nodes:
+        if n.own is not None:
+            assert not covered & n.own.places, "every place in exactly one node"
+            covered |= n.own.places
+    assert covered == (1 << len(net.places)) - 1
+    channels = [n for n in nodes if n.kind == "channel"]
+    assert channels and all(nodes[n.parent].kind == "system"  # type: ignore[index]
+                            for n in channels if n.parent is not None)
+
+
+def _lts(edges: list[tuple[int, int, int]], n: int, flags: list[int] | None = None) -> Lts:
+    out: list[list[tuple[int, int]]] = [[] for _ in range(n)]
+    for s, a, d in edges:
+        out[s].append((a, d))
+    alphabet = frozenset(a for _, a, _ in edges if a != TAU)
+    return Lts(0, flags or [0] * n, out, alphabet)
+
+
+def test_minimize_merges_inert_silent_steps_and_keeps_deadlocks() -> None:
+    # 0 -tau-> 1 -a-> 2 ; 0 -a-> 2 : branching bisimilar to one a-step
+    m = minimize(_lts([(0, TAU, 1), (1, 5, 2), (0, 5, 2)], 3))
+    assert m.size == 2 and m.out[0] == [(5, 1)] and m.out[1] == []
+    # a silent choice into a deadlock is not inert: 0 -tau-> dead, 0 -a-> 2 -a-> 2
+    m = minimize(_lts([(0, TAU, 1), (0, 5, 2), (2, 5, 2)], 3))
+    assert m.size == 3 and any(not edges for edges in m.out)
+
+
+def test_minimize_keeps_divergence_apart_from_deadlock() -> None:
+    looping = minimize(_lts([(0, TAU, 1), (1, TAU, 0)], 2))
+    assert looping.size == 1 and looping.out[0] == [(TAU, 0)]
+    stuck = minimize(_lts([(0, TAU, 1)], 2))
+    assert stuck.size == 1 and stuck.out[0] == []
+
+
+def test_minimize_respects_flags() -> None:
+    m = minimize(_lts([(0, TAU, 1)], 2, [0, FINAL]))
+    assert m.size == 2 and m.flags == [0, FINAL]
+
+
+def test_composition_order_walks_a_chain() -> None:
+    # parts 0-1-2-3 in a chain, listed out of order: 0, 2, 3, 1
+    alphabets = [{1}, {2, 3}, {3, 4}, {1, 2}]
+    assert composition_order(alphabets) == [0, 3, 1, 2]
