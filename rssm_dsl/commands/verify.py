@@ -25,8 +25,9 @@ def verify_cmd(
                        help="Give up (inconclusive) after this many seconds.")] = 300.0,
     format: Annotated[Format, typer.Option("--format", "-f", help="text or json")] = Format.text,
     reduction: Annotated[str, typer.Option(
-        help="auto (full exploration, then stubborn sets when it does not fit), off (full "
-             "exploration only), on (stubborn sets only)")]
+        help="auto (full exploration; when it does not fit, the compositional check, then "
+             "stubborn sets), off (full exploration only), on (stubborn sets only), "
+             "compositional (page by page, reduced modulo branching bisimulation)")]
     = "auto",
     invariants: Annotated[bool, typer.Option(help="Compute the minimal P-invariants.")] = True,
     progress_check: Annotated[bool, typer.Option("--progress-check/--no-progress-check",
@@ -51,9 +52,9 @@ def verify_cmd(
         from rssm_dsl.verify import VerifyOptions, render_json, render_text, verify
         from rssm_dsl.verify.statespace import Progress
 
-        if reduction not in ("auto", "on", "off"):
-            typer.echo(f"rssmc: --reduction must be auto, on or off, not {reduction!r}",
-                       err=True)
+        if reduction not in ("auto", "on", "off", "compositional"):
+            typer.echo(f"rssmc: --reduction must be auto, on, off or compositional, not "
+                       f"{reduction!r}", err=True)
             return EXIT_INCONCLUSIVE
         comp = compile_file(file)
         if not comp.ok or comp.hpn is None:

@@ -310,11 +310,12 @@ def _compositional(net: FlatNet, nb: NetBits, opts: VerifyOptions, budget: float
                    ) -> tuple[ComposeResult, list[str]]:
     """The compositional check (``compose``) within ``budget`` seconds."""
     deadline = None if budget is None else time.monotonic() + budget
-    res = compose_check(net, nb, opts.max_states, deadline, detail=True)
+    res = compose_check(net, nb, opts.max_states, deadline, detail=opts.check_progress)
     notes = [f"compositional check: {res.components} page components, {res.states:,} states "
              f"built in all, the largest composition {res.largest:,} states"]
     if res.stopped:
         notes.append(f"compositional check: {res.stopped}")
     elif not res.detail_complete:
-        notes.append("compositional check: progress and reachable behaviours not decided")
+        notes.append("compositional check: progress and reachable behaviours not decided"
+                     + ("" if opts.check_progress else " (--no-progress-check)"))
     return res, notes

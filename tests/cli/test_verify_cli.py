@@ -61,3 +61,22 @@ def test_bad_input_is_exit_2_with_diagnostics(tmp_path: Path) -> None:
     bad.write_text("system s { agent a { control { behaviour b { } } } }\n")
     r = verify(bad)
     assert r.returncode == 2 and "error[" in r.stderr and "Traceback" not in r.stderr
+
+
+def test_too_large_to_explore_is_verified_compositionally() -> None:
+    # camera_tracker has over 5 million reachable markings: full exploration stops at its
+    # budget and the compositional check gives the verdict
+    r = verify(EXAMPLES / "camera_tracker.rssm", "--format", "json")
+    assert r.returncode == 0, r.stdout + r.stderr
+    report = json.loads(r.stdout)
+    assert report["verdict"] == "verified"
+    assert report["state_space"]["method"] == "full+compositional"
+    assert report["progress_ok"] is True and len(report["progress_checked"]) == 5
+    assert report["unreachable_behaviours"] == []
+
+
+def test_compositional_reduction_reports_loss_of_progress() -> None:
+    r = verify(EXAMPLES / "verify" / "progress_triple.rssm", "--reduction", "compositional")
+    assert r.returncode == 1, r.stdout + r.stderr
+    assert "2 subsystem(s) can get stuck" in r.stdout
+    assert "loss of progress: left.c" in r.stdout and "loss of progress: right.c" in r.stdout
