@@ -11,8 +11,8 @@ inside out, and every transition that stays inside a page's subtree can be hidde
 as that subtree is composed: a partial function is reduced before its behaviour sees it, a
 subsystem before its agent, an agent before the system.
 
-A flat net without page information (hand-built test nets) gets a two-level tree: the
-subsystems' places under a root holding the rest.
+A flat net without page information (hand-built test nets) gets a two-level tree: one
+piece per subsystem and one per channel under a root holding the rest.
 """
 
 from __future__ import annotations
@@ -70,11 +70,18 @@ def page_tree(net: FlatNet, nb: NetBits) -> list[Node]:
             masks.append(1 << q)
     else:
         subs = sorted({p.subsystem for p in net.places if p.subsystem is not None})
+        chans = sorted({p.channel or "" for p in net.places if is_fusion(net, p.index)})
         info = [("net", "system", net.system, None)]
         info += [(s, "subsystem", s, 0) for s in subs]
+        info += [(c, "channel", c, 0) for c in chans]
         masks = [0] * len(info)
         for p in net.places:
-            masks[subs.index(p.subsystem) + 1 if p.subsystem is not None else 0] |= 1 << p.index
+            if p.subsystem is not None:
+                masks[subs.index(p.subsystem) + 1] |= 1 << p.index
+            elif p.channel is not None:
+                masks[chans.index(p.channel) + 1 + len(subs)] |= 1 << p.index
+            else:
+                masks[0] |= 1 << p.index
         root = 0
     kids: list[list[int]] = [[] for _ in info]
     for k, (_, _, _, parent) in enumerate(info):
