@@ -32,7 +32,7 @@ a final marking is the system having finished, not an error.
 from __future__ import annotations
 
 import time
-from collections.abc import Callable
+from collections.abc import Collection
 from dataclasses import dataclass
 
 from rssm_dsl.hpn.flat import FlatNet
@@ -175,10 +175,9 @@ def verify(net: FlatNet, options: VerifyOptions | None = None) -> VerifyReport:
     if full is not None and full.complete:
         assert full.fired is not None and full.ever_marked is not None
         dead_transitions = tuple(t for t in net.transitions if t.index not in full.fired)
-        fired, ever = full.fired, full.ever_marked
-        unreachable = _unreachable_behaviours(net, lambda key: key in _reached(net, fired, ever))
+        unreachable = _unreachable_behaviours(net, _reached(net, full.fired, full.ever_marked))
     elif comp is not None and comp.detail_complete:
-        unreachable = _unreachable_behaviours(net, lambda key: key in comp.reached)
+        unreachable = _unreachable_behaviours(net, comp.reached)
         notes.append("dead transitions need the full state space (the compositional check "
                      "decides reachable behaviours only)")
     elif (reduced is not None and reduced.complete) or by_comp:
@@ -288,7 +287,7 @@ def _reached(net: FlatNet, fired: frozenset[int], ever: int) -> set[tuple[str | 
     return out
 
 
-def _unreachable_behaviours(net: FlatNet, reached: Callable[[tuple[str | None, str]], bool],
+def _unreachable_behaviours(net: FlatNet, reached: Collection[tuple[str | None, str]],
                             ) -> tuple[str, ...]:
     where: dict[tuple[str | None, str], str] = {}
     for p in net.places:
@@ -299,7 +298,7 @@ def _unreachable_behaviours(net: FlatNet, reached: Callable[[tuple[str | None, s
             where.setdefault((t.subsystem, t.behaviour), t.span.location)
     out = []
     for key, location in where.items():
-        if not reached(key):
+        if key not in reached:
             sub, beh = key
             name = beh if sub is None or beh.startswith(f"{sub}.") else f"{sub}: {beh}"
             out.append(f"{name} ({location})")
