@@ -8,6 +8,8 @@ import time
 from pathlib import Path
 
 import pytest
+from hypothesis import given, settings
+from hypothesis import strategies as st
 from netkit import (
     hpn_like,
     mode_pair,
@@ -26,7 +28,7 @@ from rssm_dsl.pipeline import compile_file
 from rssm_dsl.synth import lean_ring_system
 from rssm_dsl.verify import Verdict, VerifyOptions, verify
 from rssm_dsl.verify.compose.check import compose_check
-from rssm_dsl.verify.compose.lts import FINAL, TAU, Lts, minimize
+from rssm_dsl.verify.compose.lts import FINAL, TAU, Lts, minimize, refine
 from rssm_dsl.verify.compose.order import composition_order
 from rssm_dsl.verify.compose.tree import page_tree
 from rssm_dsl.verify.netbits import NetBits
@@ -166,3 +168,68 @@ def test_composition_order_walks_a_chain() -> None:
     # parts 0-1-2-3 in a chain, listed out of order: 0, 2, 3, 1
     alphabets = [{1}, {2, 3}, {3, 4}, {1, 2}]
     assert composition_order(alphabets) == [0, 3, 1, 2]
+
+
+def _reference_refine(flags: list[int], div: list[bool],
+                      edges_of: list[list[tuple[int, int]]]) -> list[int]:
+    """Plain signature refinement (Blom and Orzan): every signature recomputed every round."""
+    keys: dict[tuple[int, bool], int] = {}
+    block = [keys.setdefault((flags[c], div[c]), len(keys)) for c in range(len(flags))]
+    count = len(keys)
+    while True:
+        sigs: list[frozenset[tuple[int, int]]] = []
+        for c, edges in enumerate(edges_of):
+            sig: set[tuple[int, int]] = set()
+            for a, d in edges:
+                if a == TAU and block[d] == block[c]:
+                    sig |= sigs[d]
+                else:
+                    sig.add((a, block[d]))
+            sigs.append(frozenset(sig))
+        new: dict[tuple[int, frozenset[tuple[int, int]]], int] = {}
+        block = [new.setdefault((block[c], sigs[c]), len(new)) for c in range(len(flags))]
+        if len(new) == count:
+            return block
+        count = len(new)
+
+
+def _same_partition(x: list[int], y: list[int]) -> bool:
+    pairs = set(zip(x, y, strict=True))
+    return len(pairs) == len(set(x)) == len(set(y))
+
+
+@st.composite
+def _silent_dag(draw: st.DrawFn) -> tuple[list[int], list[bool], list[list[tuple[int, int]]]]:
+    """A graph whose silent edges go to lower-numbered states, as ``refine`` expects."""
+    n = draw(st.integers(1, 14))
+    edges_of: list[list[tuple[int, int]]] = [[] for _ in range(n)]
+    for _ in range(draw(st.integers(0, 3 * n))):
+        c = draw(st.integers(0, n - 1))
+        a = draw(st.sampled_from([TAU, TAU, 1, 2]))
+        d = draw(st.integers(0, c - 1)) if a == TAU and c > 0 else draw(st.integers(0, n - 1))
+        if a == TAU and c == 0:
+            continue
+        if (a, d) not in edges_of[c]:
+            edges_of[c].append((a, d))
+    flags = [draw(st.sampled_from([0, 0, FINAL])) for _ in range(n)]
+    div = [draw(st.booleans()) for _ in range(n)]
+    return flags, div, edges_of
+
+
+@settings(max_examples=400, deadline=None)
+@given(_silent_dag())
+def test_incremental_refinement_finds_the_partition_of_plain_refinement(
+        graph: tuple[list[int], list[bool], list[list[tuple[int, int]]]]) -> None:
+    flags, div, edges_of = graph
+    assert _same_partition(refine(flags, div, edges_of),
+                           _reference_refine(flags, div, edges_of))
+
+
+def test_incremental_refinement_counts_a_long_chain() -> None:
+    # a counter: n states in a line, each a-step down, b-step up; all states differ
+    n = 300
+    edges_of = [[(1, c - 1)] if c else [] for c in range(n)]
+    for c in range(n - 1):
+        edges_of[c].append((2, c + 1))
+    block = refine([0] * n, [False] * n, edges_of)
+    assert len(set(block)) == n

@@ -153,7 +153,9 @@ def _run(net: FlatNet, nb: NetBits, max_states: int, deadline: float | None, det
             for c in nodes[k].children]
         visible = frozenset(t for p in parts for t in p.alphabet
                             if t in keep or leaves_subtree(t, k))
-        result = guard(chain(parts, visible), entries[k])
+        connectors = {i + (mine is not None) for i, c in enumerate(nodes[k].children)
+                      if nodes[c].kind == "channel"}
+        result = guard(chain(parts, visible, connectors), entries[k])
         if nodes[k].kind == "device":     # its places are not its agent's control places
             result = minimized(Lts(result.init, [f & ~BUSY for f in result.flags], result.out,
                                    result.alphabet))
@@ -170,24 +172,45 @@ def _run(net: FlatNet, nb: NetBits, max_states: int, deadline: float | None, det
                for s, edges in enumerate(lts.out)]
         return minimized(Lts(lts.init, [*lts.flags, VIOLATED], [*out, []], lts.alphabet))
 
-    def chain(parts: list[Lts], visible: frozenset[int]) -> Lts:
+    def chain(parts: list[Lts], visible: frozenset[int],
+              connectors: frozenset[int] | set[int] = frozenset()) -> Lts:
         """Compose ``parts`` one at a time (``composition_order``), hiding every action not
-        in ``visible`` as soon as all parts using it are in."""
+        in ``visible`` as soon as all parts using it are in. A connector (a channel) that
+        links what is composed to the next part goes in together with that part."""
         order = composition_order([p.alphabet for p in parts])
         left: dict[int, int] = {}
         for p in parts:
             for t in p.alphabet:
                 left[t] = left.get(t, 0) + 1
         cur: Lts | None = None
-        for i in order:
-            part = parts[i]
-            closing = set()
-            for t in part.alphabet:
+        q = 0
+
+        def take(i: int) -> None:
+            for t in parts[i].alphabet:
                 left[t] -= 1
-                if left[t] == 0 and t not in visible:
-                    closing.add(t)
-            cur = (minimized(part.hide(closing)) if cur is None
-                   else compose(cur, part, closing))
+
+        def closed(lts: Lts, keep: frozenset[int]) -> set[int]:
+            return {t for t in lts.alphabet if left[t] == 0 and t not in visible
+                    and t not in keep}
+
+        while q < len(order):
+            take(order[q])
+            segment = parts[order[q]]
+            q += 1
+            if cur is None:
+                cur = minimized(segment.hide(closed(segment, frozenset())))
+                continue
+            # a connector between ``cur`` and the next part (a channel and the agent reading
+            # it) is composed with that part first: ``cur`` never carries the channel's state
+            # unconstrained by its reader, and there is one large reduction instead of two
+            if (order[q - 1] in connectors and q < len(order)
+                    and segment.alphabet <= cur.alphabet | parts[order[q]].alphabet):
+                take(order[q])
+                nxt = parts[order[q]]
+                q += 1
+                segment = compose(segment, nxt, closed(segment, cur.alphabet)
+                                  | closed(nxt, cur.alphabet))
+            cur = compose(cur, segment, closed(cur, frozenset()) | closed(segment, frozenset()))
         assert cur is not None
         return cur
 

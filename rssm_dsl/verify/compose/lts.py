@@ -150,13 +150,42 @@ def minimize(lts: Lts) -> Lts:
         if size[c] > 1:
             div[c] = True
     edges_of = [list(t) for t in cout]
-    # initial partition: flags and divergence
+    block = refine(cflags, div, edges_of)
+    return _quotient(lts, comp, block, cflags, div, edges_of)
+
+
+def refine(flags: list[int], div: list[bool], edges_of: list[Edges]) -> list[int]:
+    """The block of every state of a graph free of silent cycles whose silent edges go to
+    lower-numbered states: the coarsest partition that separates flags and divergence and in
+    which all states of a block have the same signature.
+
+    Incremental signature refinement: a state's signature only changes when a state it
+    reaches by an edge, or by silent steps inside its block, moves to another block. So each
+    round recomputes the signatures of the states that moved and of their predecessors
+    (closed backwards under inert silent steps) only, in increasing order so that inert
+    successors come first. Within a block the states not recomputed all keep the signature
+    the block had when it was last split (``common``); recomputed states that differ from it
+    move to new blocks, one per signature. A block whose states were all recomputed keeps its
+    largest group. Counting structures (a chain of agents with messages in flight) need as
+    many rounds as they have states; each round costs only the region that changed."""
+    n = len(flags)
+    preds: list[list[int]] = [[] for _ in range(n)]
+    silent_preds: list[list[int]] = [[] for _ in range(n)]
+    for c in range(n):
+        for a, d in edges_of[c]:
+            preds[d].append(c)
+            if a == TAU:
+                silent_preds[d].append(c)
     keys: dict[tuple[int, bool], int] = {}
-    block = [keys.setdefault((cflags[c], div[c]), len(keys)) for c in range(nc)]
-    nblocks = len(keys)
-    while True:
-        sigs: list[frozenset[tuple[int, int]]] = [frozenset()] * nc
-        for c in range(nc):
+    block = [keys.setdefault((flags[c], div[c]), len(keys)) for c in range(n)]
+    count = [0] * len(keys)
+    for b in block:
+        count[b] += 1
+    common: list[frozenset[tuple[int, int]] | None] = [None] * len(keys)
+    sigs: list[frozenset[tuple[int, int]]] = [frozenset()] * n
+    dirty: list[int] = list(range(n))
+    while dirty:
+        for c in dirty:
             bc = block[c]
             sig: set[tuple[int, int]] = set()
             for a, d in edges_of[c]:
@@ -166,16 +195,59 @@ def minimize(lts: Lts) -> Lts:
                 else:
                     sig.add((a, bd))
             sigs[c] = frozenset(sig)
-        new_keys: dict[tuple[int, frozenset[tuple[int, int]]], int] = {}
-        block = [new_keys.setdefault((block[c], sigs[c]), len(new_keys)) for c in range(nc)]
-        if len(new_keys) == nblocks:
+        by_block: dict[int, list[int]] = {}
+        for c in dirty:
+            by_block.setdefault(block[c], []).append(c)
+        moved: list[int] = []
+        for b, states in by_block.items():
+            groups: dict[frozenset[tuple[int, int]], list[int]] = {}
+            for c in states:
+                groups.setdefault(sigs[c], []).append(c)
+            keep = common[b]
+            if len(states) == count[b] or keep is None:
+                keep = max(groups, key=lambda g: len(groups[g]))
+                common[b] = keep
+            if len(groups) == 1 and keep in groups:
+                continue
+            for g, members in groups.items():
+                if g == keep:
+                    continue
+                nb = len(count)
+                count.append(len(members))
+                common.append(g)
+                count[b] -= len(members)
+                for c in members:
+                    block[c] = nb
+                moved.extend(members)
+        if not moved:
             break
-        nblocks = len(new_keys)
-    # quotient, renumbered from the initial block in breadth-first order
+        seen = set(moved)
+        for c in moved:
+            seen.update(preds[c])
+        stack = list(seen)
+        while stack:
+            c = stack.pop()
+            bc = block[c]
+            for p in silent_preds[c]:
+                if p not in seen and block[p] == bc:
+                    seen.add(p)
+                    stack.append(p)
+        dirty = sorted(seen)
+    return block
+
+
+def _quotient(lts: Lts, comp: list[int], block: list[int], cflags: list[int],
+              div: list[bool], edges_of: list[Edges]) -> Lts:
+    """One state per block reachable from the initial one, renumbered breadth-first."""
+    ids: dict[int, int] = {}
+    for b in block:
+        ids.setdefault(b, len(ids))
+    nblocks = len(ids)
+    block = [ids[b] for b in block]
     qout: list[set[tuple[int, int]]] = [set() for _ in range(nblocks)]
     qflags = [0] * nblocks
     qdiv = [False] * nblocks
-    for c in range(nc):
+    for c in range(len(block)):
         b = block[c]
         qflags[b] = cflags[c]
         qdiv[b] = div[c]

@@ -60,14 +60,16 @@ def page_tree(net: FlatNet, nb: NetBits) -> list[Node]:
                 fusion.append(p.index)
             else:
                 masks[ids.get(p.page or "", root)] |= 1 << p.index
-        # a channel's fusion places: a component of their own under the lowest page holding
-        # both ends
+        # a channel's fusion places: one component of their own under the lowest page
+        # holding both ends (together, so that the channel's places constrain each other)
+        channels: dict[str, list[int]] = {}
         for q in fusion:
-            ends = {page for t in bits(nb.consumers[q] | nb.producers[q])
+            channels.setdefault(net.places[q].channel or "", []).append(q)
+        for channel, places in channels.items():
+            ends = {page for q in places for t in bits(nb.consumers[q] | nb.producers[q])
                     for page in _pages_of(net, nb, t, ids, root)}
-            info.append((net.places[q].name, "channel", net.places[q].channel or "",
-                         _lowest_common(info, ends, root)))
-            masks.append(1 << q)
+            info.append((channel, "channel", channel, _lowest_common(info, ends, root)))
+            masks.append(sum(1 << q for q in places))
     else:
         subs = sorted({p.subsystem for p in net.places if p.subsystem is not None})
         chans = sorted({p.channel or "" for p in net.places if is_fusion(net, p.index)})
