@@ -29,10 +29,11 @@ when a violation is found.
 from __future__ import annotations
 
 import time
-from collections.abc import Callable
+from collections.abc import Callable, Hashable
 from dataclasses import dataclass, field
 
 from rssm_dsl.hpn.flat import FlatNet, Role
+from rssm_dsl.verify.compose.cache import rename, subtree_key
 from rssm_dsl.verify.compose.components import local_lts
 from rssm_dsl.verify.compose.lts import (
     BUSY,
@@ -214,10 +215,18 @@ def _run(net: FlatNet, nb: NetBits, max_states: int, deadline: float | None, det
         assert cur is not None
         return cur
 
-    # 1. bottom-up: every page's subtree, the root's is the whole net with nothing visible
+    # 1. bottom-up: every page's subtree, the root's is the whole net with nothing visible;
+    # a subtree equal to one built before up to renaming (another agent of a ring) is renamed
     built: dict[int, Lts] = {}
+    seen: dict[Hashable, tuple[Lts, tuple[int, ...]]] = {}
     for k in range(len(nodes) - 1, -1, -1):
+        key, transitions = subtree_key(nodes, k, nb, users, own_control, entries)
+        if key in seen:
+            lts, source = seen[key]
+            built[k] = rename(lts, source, transitions)
+            continue
         built[k] = build(k)
+        seen[key] = (built[k], transitions)
     whole = built[0]
     assert not whole.alphabet, "every transition is hidden at the root"
     unsafe = any(f & UNSAFE for f in whole.flags)
