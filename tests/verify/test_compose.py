@@ -28,7 +28,15 @@ from rssm_dsl.pipeline import compile_file
 from rssm_dsl.synth import lean_ring_system
 from rssm_dsl.verify import Verdict, VerifyOptions, verify
 from rssm_dsl.verify.compose.check import compose_check
-from rssm_dsl.verify.compose.lts import FINAL, TAU, Lts, minimize, refine
+from rssm_dsl.verify.compose.lts import (
+    FINAL,
+    TAU,
+    UNBOUNDED,
+    Lts,
+    interface_counts,
+    minimize,
+    refine,
+)
 from rssm_dsl.verify.compose.order import composition_order
 from rssm_dsl.verify.compose.tree import page_tree
 from rssm_dsl.verify.netbits import NetBits
@@ -233,3 +241,37 @@ def test_incremental_refinement_counts_a_long_chain() -> None:
         edges_of[c].append((2, c + 1))
     block = refine([0] * n, [False] * n, edges_of)
     assert len(set(block)) == n
+
+
+@st.composite
+def _lts_and_groups(draw: st.DrawFn) -> tuple[Lts, list[frozenset[int]]]:
+    n = draw(st.integers(1, 12))
+    actions = [1, 2, 3, 4]
+    edges = []
+    for _ in range(draw(st.integers(0, 3 * n))):
+        edges.append((draw(st.integers(0, n - 1)), draw(st.sampled_from([TAU, TAU, *actions])),
+                      draw(st.integers(0, n - 1))))
+    flags = [draw(st.sampled_from([0, 0, FINAL])) for _ in range(n)]
+    lts = _lts(edges, n, flags)
+    split = draw(st.integers(1, 4))
+    return lts, [frozenset(actions[:split]), frozenset(actions[split:])]
+
+
+@settings(max_examples=300, deadline=None)
+@given(_lts_and_groups())
+def test_interface_counts_only_speed_the_reduction_up(case: tuple[Lts, list[frozenset[int]]]
+                                                      ) -> None:
+    lts, groups = case
+    plain, seeded = minimize(lts), minimize(lts, groups)
+    assert seeded.size == plain.size
+    assert sorted(seeded.flags) == sorted(plain.flags)
+    assert seeded.edge_count == plain.edge_count
+
+
+def test_interface_counts_count_deliveries_without_input() -> None:
+    # a buffer of 3 places: in (1) fills one, out (2) empties one; out-steps without input
+    edges = [(c, 1, c + 1) for c in range(3)] + [(c + 1, 2, c) for c in range(3)]
+    counts = interface_counts([[(a, d) for s, a, d in edges if s == c] for c in range(4)],
+                              frozenset({2}))
+    assert counts == [0, 1, 2, 3]
+    assert interface_counts([[(1, 1)], [(1, 0)]], frozenset({1})) == [UNBOUNDED, UNBOUNDED]

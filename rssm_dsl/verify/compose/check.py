@@ -29,7 +29,7 @@ when a violation is found.
 from __future__ import annotations
 
 import time
-from collections.abc import Callable, Hashable
+from collections.abc import Callable, Hashable, Sequence
 from dataclasses import dataclass, field
 
 from rssm_dsl.hpn.flat import FlatNet, Role
@@ -124,13 +124,14 @@ def _run(net: FlatNet, nb: NetBits, max_states: int, deadline: float | None, det
         if on_step is not None:
             on_step(phase, done, len(nodes))
 
-    def minimized(lts: Lts) -> Lts:
+    def minimized(lts: Lts, groups: Sequence[frozenset[int]] = ()) -> Lts:
         res.states += lts.size
         res.largest = max(res.largest, lts.size)
-        return minimize(lts)
+        return minimize(lts, groups)
 
-    def compose(x: Lts, y: Lts, hidden: frozenset[int] | set[int]) -> Lts:
-        return minimized(product(x, y, frozenset(hidden), max_states))
+    def compose(x: Lts, y: Lts, hidden: frozenset[int] | set[int],
+                groups: Sequence[frozenset[int]] = ()) -> Lts:
+        return minimized(product(x, y, frozenset(hidden), max_states), groups)
 
     def leaves_subtree(t: int, k: int) -> bool:
         node = nodes[k]
@@ -156,7 +157,7 @@ def _run(net: FlatNet, nb: NetBits, max_states: int, deadline: float | None, det
                             if t in keep or leaves_subtree(t, k))
         connectors = {i + (mine is not None) for i, c in enumerate(nodes[k].children)
                       if nodes[c].kind == "channel"}
-        result = guard(chain(parts, visible, connectors), entries[k])
+        result = guard(chain(parts, visible, connectors, k == 0), entries[k])
         if nodes[k].kind == "device":     # its places are not its agent's control places
             result = minimized(Lts(result.init, [f & ~BUSY for f in result.flags], result.out,
                                    result.alphabet))
@@ -174,7 +175,8 @@ def _run(net: FlatNet, nb: NetBits, max_states: int, deadline: float | None, det
         return minimized(Lts(lts.init, [*lts.flags, VIOLATED], [*out, []], lts.alphabet))
 
     def chain(parts: list[Lts], visible: frozenset[int],
-              connectors: frozenset[int] | set[int] = frozenset()) -> Lts:
+              connectors: frozenset[int] | set[int] = frozenset(),
+              k_root: bool = False) -> Lts:
         """Compose ``parts`` one at a time (``composition_order``), hiding every action not
         in ``visible`` as soon as all parts using it are in. A connector (a channel) that
         links what is composed to the next part goes in together with that part."""
@@ -185,6 +187,18 @@ def _run(net: FlatNet, nb: NetBits, max_states: int, deadline: float | None, det
                 left[t] = left.get(t, 0) + 1
         cur: Lts | None = None
         q = 0
+        used_by: dict[int, set[int]] = {}
+        for i, p in enumerate(parts):
+            for t in p.alphabet:
+                used_by.setdefault(t, set()).add(i)
+
+        def interfaces(alphabet: frozenset[int]) -> list[frozenset[int]]:
+            """The open actions grouped by the parts that use them (those composed and those
+            still to come): one group per pair of neighbours."""
+            by: dict[frozenset[int], set[int]] = {}
+            for t in alphabet:
+                by.setdefault(frozenset(used_by[t]), set()).add(t)
+            return [frozenset(g) for g in by.values()]
 
         def take(i: int) -> None:
             for t in parts[i].alphabet:
@@ -211,7 +225,16 @@ def _run(net: FlatNet, nb: NetBits, max_states: int, deadline: float | None, det
                 q += 1
                 segment = compose(segment, nxt, closed(segment, cur.alphabet)
                                   | closed(nxt, cur.alphabet))
-            cur = compose(cur, segment, closed(cur, frozenset()) | closed(segment, frozenset()))
+            hidden = closed(cur, frozenset()) | closed(segment, frozenset())
+            if q == len(order) and not visible and k_root:
+                # the whole net with nothing visible: its deadlocks and flags are read off
+                # the product directly, a reduction would be wasted
+                cur = product(cur, segment, frozenset(hidden), max_states)
+                res.states += cur.size
+                res.largest = max(res.largest, cur.size)
+                continue
+            cur = compose(cur, segment, hidden,
+                          interfaces((cur.alphabet | segment.alphabet) - hidden))
         assert cur is not None
         return cur
 

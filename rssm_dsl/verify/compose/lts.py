@@ -30,6 +30,7 @@ compositional check relies on. The algorithm:
 
 from __future__ import annotations
 
+from collections.abc import Sequence
 from dataclasses import dataclass
 
 TAU = -1
@@ -65,13 +66,17 @@ class Lts:
 
 
 def _silent_components(lts: Lts) -> tuple[list[int], int]:
-    """Tarjan over silent edges between states with equal flags, iteratively.
+    """The strongly connected components of the silent edges between states with equal
+    flags, numbered so that every silent edge leaving a component goes to a lower number."""
+    flags = lts.flags
+    return components([[w for a, w in edges if a == TAU and w != v and flags[w] == flags[v]]
+                       for v, edges in enumerate(lts.out)])
 
-    Returns the component of every state and the number of components; components are
-    numbered in the order Tarjan closes them, so every silent edge leaving a component goes
-    to a lower number."""
-    n = lts.size
-    flags, out = lts.flags, lts.out
+
+def components(succ: list[list[int]]) -> tuple[list[int], int]:
+    """Tarjan, iteratively: the strongly connected component of every node and their number;
+    components are numbered in the order Tarjan closes them, successors first."""
+    n = len(succ)
     index = [-1] * n
     low = [0] * n
     comp = [-1] * n
@@ -89,14 +94,11 @@ def _silent_components(lts: Lts) -> tuple[list[int], int]:
         on_stack[root] = True
         while work:
             v, i = work[-1]
-            edges = out[v]
-            fv = flags[v]
+            edges = succ[v]
             advanced = False
             while i < len(edges):
-                a, w = edges[i]
+                w = edges[i]
                 i += 1
-                if a != TAU or w == v or flags[w] != fv:
-                    continue
                 if index[w] < 0:
                     work[-1] = (v, i)
                     index[w] = low[w] = counter
@@ -126,9 +128,50 @@ def _silent_components(lts: Lts) -> tuple[list[int], int]:
     return comp, ncomp
 
 
-def minimize(lts: Lts) -> Lts:
+UNBOUNDED = -1
+
+
+def interface_counts(edges_of: list[Edges], group: frozenset[int]) -> list[int]:
+    """Per state, the largest number of ``group`` actions on a path that uses only silent
+    steps and ``group`` actions (``UNBOUNDED`` if such a path can repeat one forever).
+
+    This is a property of the state's weak traces, so branching-bisimilar states share it:
+    it may seed the partition. For a chain of agents, with ``group`` the actions towards the
+    next agent, it is the number of messages the chain can still deliver without input, the
+    counter that plain refinement would otherwise discover one round per value."""
+    succ = [[d for a, d in edges if a == TAU or a in group] for edges in edges_of]
+    comp, nc = components(succ)
+    best = [0] * nc
+    members: list[list[int]] = [[] for _ in range(nc)]
+    for c, k in enumerate(comp):
+        members[k].append(c)
+    for k in range(nc):                 # successors first
+        value = 0
+        for c in members[k]:
+            for a, d in edges_of[c]:
+                if a != TAU and a not in group:
+                    continue
+                step = 0 if a == TAU else 1
+                kd = comp[d]
+                if kd == k:
+                    if step:
+                        value = UNBOUNDED
+                        break
+                    continue
+                if best[kd] == UNBOUNDED:
+                    value = UNBOUNDED
+                    break
+                value = max(value, best[kd] + step)
+            if value == UNBOUNDED:
+                break
+        best[k] = value
+    return [best[k] for k in comp]
+
+
+def minimize(lts: Lts, groups: Sequence[frozenset[int]] = ()) -> Lts:
     """The quotient of ``lts`` (reachable part) modulo divergence-preserving branching
-    bisimilarity, flags respected."""
+    bisimilarity, flags respected. ``groups`` (visible actions towards one neighbour each)
+    only speed it up: their ``interface_counts`` seed the partition."""
     comp, nc = _silent_components(lts)
     # collapsed graph, components numbered successors-first (silent edges go to lower ids)
     cflags = [0] * nc
@@ -150,14 +193,21 @@ def minimize(lts: Lts) -> Lts:
         if size[c] > 1:
             div[c] = True
     edges_of = [list(t) for t in cout]
-    block = refine(cflags, div, edges_of)
+    seeds = cflags
+    for group in groups:
+        if group & lts.alphabet:
+            counts = interface_counts(edges_of, group & lts.alphabet)
+            keys: dict[tuple[int, int], int] = {}
+            seeds = [keys.setdefault((f, v), len(keys)) for f, v in zip(seeds, counts, strict=True)]
+    block = refine(seeds, div, edges_of)
     return _quotient(lts, comp, block, cflags, div, edges_of)
 
 
 def refine(flags: list[int], div: list[bool], edges_of: list[Edges]) -> list[int]:
     """The block of every state of a graph free of silent cycles whose silent edges go to
-    lower-numbered states: the coarsest partition that separates flags and divergence and in
-    which all states of a block have the same signature.
+    lower-numbered states: the coarsest partition that separates flags (any int per state
+    that bisimilar states share) and divergence and in which all states of a block have the
+    same signature.
 
     Incremental signature refinement: a state's signature only changes when a state it
     reaches by an edge, or by silent steps inside its block, moves to another block. So each
@@ -169,38 +219,59 @@ def refine(flags: list[int], div: list[bool], edges_of: list[Edges]) -> list[int
     largest group. Counting structures (a chain of agents with messages in flight) need as
     many rounds as they have states; each round costs only the region that changed."""
     n = len(flags)
+    # a pair (action, block) is coded as one int: (action + 1) << 32 | block
+    visible: list[list[tuple[int, int]]] = [[] for _ in range(n)]
+    silent: list[list[int]] = [[] for _ in range(n)]
     preds: list[list[int]] = [[] for _ in range(n)]
     silent_preds: list[list[int]] = [[] for _ in range(n)]
     for c in range(n):
         for a, d in edges_of[c]:
             preds[d].append(c)
             if a == TAU:
+                silent[c].append(d)
                 silent_preds[d].append(c)
+            else:
+                visible[c].append(((a + 1) << 32, d))
     keys: dict[tuple[int, bool], int] = {}
     block = [keys.setdefault((flags[c], div[c]), len(keys)) for c in range(n)]
     count = [0] * len(keys)
     for b in block:
         count[b] += 1
-    common: list[frozenset[tuple[int, int]] | None] = [None] * len(keys)
-    sigs: list[frozenset[tuple[int, int]]] = [frozenset()] * n
+    common: list[frozenset[int] | None] = [None] * len(keys)
+    sigs: list[frozenset[int]] = [frozenset()] * n
+    interned: dict[frozenset[int], frozenset[int]] = {}
     dirty: list[int] = list(range(n))
     while dirty:
         for c in dirty:
             bc = block[c]
-            sig: set[tuple[int, int]] = set()
-            for a, d in edges_of[c]:
+            sig = {code | block[d] for code, d in visible[c]}
+            inherited: frozenset[int] | None = None
+            several = False
+            for d in silent[c]:
                 bd = block[d]
-                if a == TAU and bd == bc:
-                    sig |= sigs[d]
-                else:
-                    sig.add((a, bd))
-            sigs[c] = frozenset(sig)
+                if bd != bc:
+                    sig.add(bd)            # (TAU + 1) << 32 is 0
+                elif inherited is None:
+                    inherited = sigs[d]
+                elif sigs[d] is not inherited:
+                    several = True
+            if inherited is None:
+                fs = frozenset(sig)
+            elif not several and sig <= inherited:
+                fs = inherited             # the common case inside a block: nothing new
+            else:
+                for d in silent[c]:
+                    if block[d] == bc:
+                        sig |= sigs[d]
+                fs = frozenset(sig)
+            # equal signatures are one object, so that the test above is by identity
+            sigs[c] = interned.setdefault(fs, fs)
         by_block: dict[int, list[int]] = {}
         for c in dirty:
             by_block.setdefault(block[c], []).append(c)
         moved: list[int] = []
         for b, states in by_block.items():
-            groups: dict[frozenset[tuple[int, int]], list[int]] = {}
+            groups: dict[frozenset[int], list[int]] = {}
             for c in states:
                 groups.setdefault(sigs[c], []).append(c)
             keep = common[b]
