@@ -146,12 +146,14 @@ def _run(net: FlatNet, nb: NetBits, max_states: int, deadline: float | None, det
         return minimized(local_lts(nb, own, shared | keep, max_states, observe,
                                    own_control[k], entries[k]))
 
-    def build(k: int, keep: frozenset[int] = frozenset(),
-              observe: tuple[int, ...] = ()) -> Lts:
-        """Node k's subtree composed, only ``keep`` and the transitions leaving it visible."""
+    def build(k: int, keep: frozenset[int] = frozenset(), observe: tuple[int, ...] = (),
+              child: tuple[int, Lts] | None = None) -> Lts:
+        """Node k's subtree composed, only ``keep`` and the transitions leaving it visible;
+        with ``observe``, rebuilt all the way down; with ``child``, that child's LTS given."""
         mine = own_lts(k, keep, observe)
         parts = ([mine] if mine is not None else []) + [
-            built[c] if not keep and not observe else build(c, keep, observe)
+            child[1] if child is not None and c == child[0] else
+            built[c] if not observe else build(c, keep, observe)
             for c in nodes[k].children]
         visible = frozenset(t for p in parts for t in p.alphabet
                             if t in keep or leaves_subtree(t, k))
@@ -267,62 +269,12 @@ def _run(net: FlatNet, nb: NetBits, max_states: int, deadline: float | None, det
     if not detail:
         return
 
-    # 2. top-down: the context of every page down to the subsystems (the rest of the net,
-    # only the transitions touching the page's subtree visible), then each subsystem with
-    # its iterations visible and its places observed against its context
+    # 2. for every subsystem: the whole net again, rebuilt along the path from the subsystem
+    # to the root (every other subtree as built above), the subsystem's ITERATION
+    # transitions visible and its places observed
     wanted = set(progress_subsystems) if progress_subsystems is not None else None
 
-    def descend(k: int, context: Lts | None) -> None:
-        node = nodes[k]
-        if node.kind in SUBSYSTEM_KINDS:
-            inspect(k, context)
-            return
-        base = own_lts(k)
-        if context is not None and base is not None:
-            base = compose(context, base, set())
-        elif base is None:
-            base = context
-        kids = node.children
-        parts = ([base] if base is not None else []) + [built[c] for c in kids]
-        offset = 1 if base is not None else 0
-        order = composition_order([p.alphabet for p in parts])
-        position = {i: q for q, i in enumerate(order)}
-        first: dict[int, int] = {}
-        last: dict[int, int] = {}
-        for q, i in enumerate(order):
-            for t in parts[i].alphabet:
-                first.setdefault(t, q)
-                last[t] = q
-        prefix: list[Lts] = []
-        for q, i in enumerate(order):
-            closing = {t for t in parts[i].alphabet if last[t] == q}
-            prefix.append(minimized(parts[i].hide(closing)) if q == 0
-                          else compose(prefix[-1], parts[i], closing))
-        suffix: list[Lts | None] = [None] * (len(order) + 1)
-        for q in range(len(order) - 1, 0, -1):
-            i = order[q]
-            nxt = suffix[q + 1]
-            closing = {t for t in parts[i].alphabet if first[t] == q}
-            suffix[q] = (minimized(parts[i].hide(closing)) if nxt is None
-                         else compose(parts[i], nxt, closing))
-        for j, c in enumerate(kids):
-            if not _has_subsystem(nodes, c):
-                continue
-            tick("contexts")
-            q = position[j + offset]
-            before = prefix[q - 1] if q > 0 else None
-            after = suffix[q + 1]
-            touching = built[c].alphabet
-            world: Lts | None
-            if before is not None and after is not None:
-                world = compose(before, after, (before.alphabet | after.alphabet) - touching)
-            else:
-                world = before if before is not None else after
-                if world is not None:
-                    world = minimized(world.hide(world.alphabet - touching))
-            descend(c, world)
-
-    def inspect(k: int, context: Lts | None) -> None:
+    def inspect(k: int) -> None:
         name = nodes[k].owner
         iterations = frozenset(t.index for t in net.transitions
                                if t.subsystem == name and t.role is Role.ITERATION)
@@ -333,8 +285,15 @@ def _run(net: FlatNet, nb: NetBits, max_states: int, deadline: float | None, det
         placeless = {t.index: (name, t.behaviour) for t in net.transitions
                      if t.subsystem == name and t.behaviour is not None
                      and (name, t.behaviour) not in behaviours}
-        mine = build(k, iterations | frozenset(placeless), observe)
-        graph = mine if context is None else compose(context, mine, set())
+        keep = iterations | frozenset(placeless)
+        tick("subsystems")
+        graph = build(k, keep, observe)
+        node = k
+        while nodes[node].parent is not None:
+            parent = nodes[node].parent
+            assert parent is not None
+            graph = build(parent, keep, (), (node, graph))
+            node = parent
         seen = 0
         for f in graph.flags:
             seen |= f
@@ -350,7 +309,9 @@ def _run(net: FlatNet, nb: NetBits, max_states: int, deadline: float | None, det
             if _loses_progress(graph, iterations):
                 res.progress_lost.append(name)
 
-    descend(0, None)
+    for k, n in enumerate(nodes):
+        if n.kind in SUBSYSTEM_KINDS:
+            inspect(k)
     res.detail_complete = True
 
 
