@@ -27,6 +27,7 @@ from rssm_dsl.hpn.flatten import flatten
 from rssm_dsl.pipeline import compile_file
 from rssm_dsl.synth import lean_ring_system
 from rssm_dsl.verify import Verdict, VerifyOptions, verify
+from rssm_dsl.verify.compose.cache import subtree_key
 from rssm_dsl.verify.compose.check import compose_check
 from rssm_dsl.verify.compose.lts import (
     FINAL,
@@ -275,3 +276,43 @@ def test_interface_counts_count_deliveries_without_input() -> None:
                               frozenset({2}))
     assert counts == [0, 1, 2, 3]
     assert interface_counts([[(1, 1)], [(1, 0)]], frozenset({1})) == [UNBOUNDED, UNBOUNDED]
+
+
+def test_identical_agents_are_composed_once(tmp_path: Path) -> None:
+    path = tmp_path / "ring.rssm"
+    path.write_text(lean_ring_system(3))
+    net = _net(path)
+    nb = NetBits.of(net)
+    reused = compose_check(net, nb, 2_000_000, time.monotonic() + 300)
+    again = compose_check(net, nb, 2_000_000, time.monotonic() + 300, reuse=False)
+    assert reused.complete and again.complete
+    assert (reused.safe, reused.deadlock_free) == (again.safe, again.deadlock_free) == (True, True)
+    assert reused.reached == again.reached
+    assert reused.progress_checked == again.progress_checked
+    assert reused.progress_lost == again.progress_lost == []
+    verdict_only = [compose_check(net, nb, 2_000_000, time.monotonic() + 300, detail=False,
+                                  reuse=reuse) for reuse in (True, False)]
+    assert verdict_only[0].states < verdict_only[1].states / 2
+
+
+def test_subtree_keys_tell_agents_and_subsystems_apart(tmp_path: Path) -> None:
+    path = tmp_path / "ring.rssm"
+    path.write_text(lean_ring_system(3))
+    net = _net(path)
+    nb = NetBits.of(net)
+    nodes = page_tree(net, nb)
+    users: dict[int, list[int]] = {}
+    for k, node in enumerate(nodes):
+        if node.own is not None:
+            for t in node.own.transitions:
+                users.setdefault(t, []).append(k)
+    zero = [0] * len(nodes)
+    none: list[frozenset[int]] = [frozenset()] * len(nodes)
+
+    def key(kind: str, owner: str) -> object:
+        k = next(k for k, n in enumerate(nodes) if n.kind == kind and n.owner == owner)
+        return subtree_key(nodes, k, nb, users, zero, none)[0]
+
+    assert key("agent", "a1") == key("agent", "a2") == key("agent", "a3")
+    assert key("subsystem", "a1.e.left") == key("subsystem", "a2.e.right")
+    assert key("subsystem", "a1.c") != key("subsystem", "a1.e.left")

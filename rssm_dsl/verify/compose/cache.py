@@ -5,11 +5,11 @@ left and right effector of an agent. The reduced LTS of a subtree depends only o
 of its pages, the transitions touching them (their arcs on those places, whether they leave
 the subtree or are shared between its pages, which pages they enter), the initial and final
 marking on those places and the shape of the subtree. ``subtree_key`` writes all of this
-with places and transitions numbered locally, in the order of their indices in the flat net
-(the order flattening emits them in, the same for every copy of a text). Two subtrees with
-equal keys have LTSs equal up to the renaming of local transition i of one into local
-transition i of the other, which ``rename`` applies. A copy flattened in another order only
-misses the cache.
+with places numbered locally in the order of their indices in the flat net (the order
+flattening emits a page's places in) and transitions in the order of their local arcs.
+Two subtrees with equal keys have LTSs equal up to the renaming of local transition i of
+one into local transition i of the other, which ``rename`` applies: the key is everything the composition
+reads, so equal keys cannot be wrong; a copy numbered differently only misses the cache.
 """
 
 from __future__ import annotations
@@ -43,16 +43,21 @@ def subtree_key(nodes: Sequence[Node], k: int, nb: NetBits, users: dict[int, lis
     ts = 0
     for p in local:
         ts |= nb.consumers[p] | nb.producers[p]
-    transitions = tuple(bits(ts))
-    index = {t: i for i, t in enumerate(transitions)}
 
     def places(m: int) -> tuple[int, ...]:
         return tuple(sorted(local[p] for p in bits(m & mask)))
 
-    arcs = tuple((places(nb.pre[t]), places(nb.post[t]),
-                  tuple(u - node.first for u in users[t] if u in span),
-                  any(u not in span for u in users[t]))
-                 for t in transitions)
+    def arcs_of(t: int) -> tuple[tuple[int, ...], tuple[int, ...], tuple[int, ...], bool]:
+        return (places(nb.pre[t]), places(nb.post[t]),
+                tuple(u - node.first for u in users[t] if u in span),
+                any(u not in span for u in users[t]))
+
+    # transitions in the order of their arcs (copies of a page are not always flattened
+    # in the same interleaving); two with the same arcs are interchangeable inside
+    order = sorted((arcs_of(t), t) for t in bits(ts))
+    transitions = tuple(t for _, t in order)
+    arcs = tuple(a for a, _ in order)
+    index = {t: i for i, t in enumerate(transitions)}
     entered = tuple(tuple(sorted(index[t] for t in entries[j] if t in index)) for j in span)
     key = (tuple(shape), arcs, entered, places(nb.initial), places(nb.final), nb.final != 0)
     return key, transitions

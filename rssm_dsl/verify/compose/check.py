@@ -76,10 +76,11 @@ StepCallback = Callable[[str, int, int], None]     # (phase, components done, of
 
 def compose_check(net: FlatNet, nb: NetBits, max_states: int, deadline: float | None,
                   detail: bool = True, progress_subsystems: list[str] | None = None,
-                  on_step: StepCallback | None = None) -> ComposeResult:
+                  on_step: StepCallback | None = None, reuse: bool = True) -> ComposeResult:
+    """``reuse``: rename the LTS of a subtree equal to one built before (``cache``)."""
     res = ComposeResult()
     try:
-        _run(net, nb, max_states, deadline, detail, progress_subsystems, on_step, res)
+        _run(net, nb, max_states, deadline, detail, progress_subsystems, on_step, reuse, res)
     except TooLarge as e:
         res.stopped = str(e)
     except OutOfTime:
@@ -88,7 +89,7 @@ def compose_check(net: FlatNet, nb: NetBits, max_states: int, deadline: float | 
 
 
 def _run(net: FlatNet, nb: NetBits, max_states: int, deadline: float | None, detail: bool,
-         progress_subsystems: list[str] | None, on_step: StepCallback | None,
+         progress_subsystems: list[str] | None, on_step: StepCallback | None, reuse: bool,
          res: ComposeResult) -> None:
     nodes = page_tree(net, nb)
     res.components = sum(1 for n in nodes if n.own is not None)
@@ -246,7 +247,7 @@ def _run(net: FlatNet, nb: NetBits, max_states: int, deadline: float | None, det
     seen: dict[Hashable, tuple[Lts, tuple[int, ...]]] = {}
     for k in range(len(nodes) - 1, -1, -1):
         key, transitions = subtree_key(nodes, k, nb, users, own_control, entries)
-        if key in seen:
+        if reuse and key in seen:
             lts, source = seen[key]
             built[k] = rename(lts, source, transitions)
             continue
