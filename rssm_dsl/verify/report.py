@@ -197,7 +197,10 @@ def render_text(report: VerifyReport, max_invariants: int = 20) -> str:
         f"running ({len(r.progress_checked)} checked)",
         f"{len(r.progress) + len(r.progress_lost)} subsystem(s) can get stuck while the rest "
         "keeps running",
-        "not checked" if not r.progress_checked else "not decided"))
+        "not decided (see the notes; --no-progress-check skips it)"
+        if any(n.startswith(("progress not decided", "compositional check: time limit",
+                             "compositional check: progress")) for n in r.notes)
+        else "not checked" if not r.progress_checked else "not decided"))
     out.append(f"  states:     {r.states} explored ({r.method}"
                f"{'' if r.complete else ', incomplete'}), {r.edges} firings, depth {r.depth},"
                f" {r.seconds:.2f} s")
