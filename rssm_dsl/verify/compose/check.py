@@ -160,7 +160,13 @@ def _run(net: FlatNet, nb: NetBits, max_states: int, deadline: float | None, det
                             if t in keep or leaves_subtree(t, k))
         connectors = {i + (mine is not None) for i, c in enumerate(nodes[k].children)
                       if nodes[c].kind == "channel"}
-        result = guard(chain(parts, visible, connectors, k == 0), entries[k])
+        if k == 0 and child is not None and root_order:
+            # only the child differs from step 1: resume the recorded composition
+            whole = chain(parts, visible, connectors, True,
+                          resume_at=nodes[k].children.index(child[0]) + (mine is not None))
+        else:
+            whole = chain(parts, visible, connectors, k == 0, record=k == 0 and not keep)
+        result = guard(whole, entries[k])
         if nodes[k].kind == "device":     # its places are not its agent's control places
             result = minimized(Lts(result.init, [f & ~BUSY for f in result.flags], result.out,
                                    result.alphabet))
@@ -177,19 +183,37 @@ def _run(net: FlatNet, nb: NetBits, max_states: int, deadline: float | None, det
                for s, edges in enumerate(lts.out)]
         return minimized(Lts(lts.init, [*lts.flags, VIOLATED], [*out, []], lts.alphabet))
 
+    # the system page's composition in step 1: its order, and what was composed before each
+    # step, so that the progress check starts a subsystem's agent from there
+    root_order: list[int] = []
+    root_steps: list[tuple[int, Lts | None]] = []
+
     def chain(parts: list[Lts], visible: frozenset[int],
               connectors: frozenset[int] | set[int] = frozenset(),
-              k_root: bool = False) -> Lts:
+              k_root: bool = False, record: bool = False,
+              resume_at: int | None = None) -> Lts:
         """Compose ``parts`` one at a time (``composition_order``), hiding every action not
         in ``visible`` as soon as all parts using it are in. A connector (a channel) that
-        links what is composed to the next part goes in together with that part."""
-        order = composition_order([p.alphabet for p in parts])
-        left: dict[int, int] = {}
-        for p in parts:
-            for t in p.alphabet:
-                left[t] = left.get(t, 0) + 1
-        cur: Lts | None = None
+        links what is composed to the next part goes in together with that part.
+
+        ``record``: keep the order and every step's start (the system page in step 1).
+        ``resume_at``: the recorded composition with part ``resume_at`` replaced, which is
+        the only one to differ: it starts from the last step recorded before that part."""
         q = 0
+        cur: Lts | None = None
+        if resume_at is None:
+            order = composition_order([p.alphabet for p in parts])
+        else:
+            order = root_order
+            where = order.index(resume_at)
+            q, cur = max((step for step in root_steps if step[0] <= where),
+                         key=lambda step: step[0])
+        if record:
+            root_order[:] = order
+        left: dict[int, int] = {}
+        for i in order[q:]:
+            for t in parts[i].alphabet:
+                left[t] = left.get(t, 0) + 1
         used_by: dict[int, set[int]] = {}
         for i, p in enumerate(parts):
             for t in p.alphabet:
@@ -212,6 +236,8 @@ def _run(net: FlatNet, nb: NetBits, max_states: int, deadline: float | None, det
                     and t not in keep}
 
         while q < len(order):
+            if record:
+                root_steps.append((q, cur))
             take(order[q])
             segment = parts[order[q]]
             q += 1
