@@ -71,6 +71,7 @@ from collections import deque
 import numpy as np
 
 from rssm_dsl.verify.netbits import NetBits, bits, to_words
+from rssm_dsl.verify.scc import components
 from rssm_dsl.verify.statespace import Graph, Progress, ProgressCallback, SearchResult, Trace
 
 _MAX_SEEDS = 8
@@ -339,8 +340,8 @@ class StubbornExplorer:
 
 
 def _cycle_breakers(n: int, src: list[int], dst: list[int], partial: list[bool]) -> list[int]:
-    """One marking per cycle-carrying strongly connected component of the subgraph of partly
-    expanded markings (iterative Tarjan)."""
+    """One marking (the lowest) per cycle-carrying strongly connected component of the
+    subgraph of partly expanded markings, components in the order Tarjan closes them."""
     succ: list[list[int]] = [[] for _ in range(n)]
     selfloop = [False] * n
     for a, b in zip(src, dst, strict=True):
@@ -349,49 +350,16 @@ def _cycle_breakers(n: int, src: list[int], dst: list[int], partial: list[bool])
                 selfloop[a] = True
             else:
                 succ[a].append(b)
-    index = [-1] * n
-    low = [0] * n
-    on_stack = [False] * n
-    stack: list[int] = []
-    breakers: list[int] = []
-    counter = 0
-    for root in range(n):
-        if not partial[root] or index[root] >= 0:
-            continue
-        work = [(root, 0)]
-        index[root] = low[root] = counter
-        counter += 1
-        stack.append(root)
-        on_stack[root] = True
-        while work:
-            v, k = work[-1]
-            if k < len(succ[v]):
-                work[-1] = (v, k + 1)
-                w = succ[v][k]
-                if index[w] < 0:
-                    index[w] = low[w] = counter
-                    counter += 1
-                    stack.append(w)
-                    on_stack[w] = True
-                    work.append((w, 0))
-                elif on_stack[w]:
-                    low[v] = min(low[v], index[w])
-                continue
-            work.pop()
-            if work:
-                u = work[-1][0]
-                low[u] = min(low[u], low[v])
-            if low[v] == index[v]:
-                members = []
-                while True:
-                    w = stack.pop()
-                    on_stack[w] = False
-                    members.append(w)
-                    if w == v:
-                        break
-                if len(members) > 1 or selfloop[v]:
-                    breakers.append(min(members))
-    return breakers
+    comp, ncomp = components(succ)
+    lowest = [n] * ncomp
+    size = [0] * ncomp
+    cyclic = [False] * ncomp
+    for v in range(n):
+        c = comp[v]
+        size[c] += 1
+        lowest[c] = min(lowest[c], v)
+        cyclic[c] = cyclic[c] or selfloop[v]
+    return [lowest[c] for c in range(ncomp) if size[c] > 1 or cyclic[c]]
 
 
 def explore_reduced(

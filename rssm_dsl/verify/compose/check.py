@@ -1,24 +1,25 @@
 """Compositional verification: the verdicts of the full state space without building it.
 
 RSSM agents and subsystems interact only through the places they share (channel fusion
-places and the start and end of the hierarchy). ``decompose`` cuts the net there; each
+places and the start and end of the hierarchy). ``tree.page_tree`` cuts the net there; each
 component's LTS is reduced modulo divergence-preserving branching bisimilarity after hiding
 what no other component sees, and components are composed one at a time in
 ``composition_order``, hiding each transition as soon as all components touching it are in,
-and reducing again. For a ring of N agents the intermediate systems stay the size of a few
-agents' interfaces, so the cost grows linearly with N instead of exponentially.
+and reducing again; subtrees equal up to renaming are composed once (``cache``). For a
+ring of N agents the intermediate systems grow linearly with N (the messages a chain of
+agents holds), not exponentially.
 
 What is decided, exactly (the equivalence preserves it, see ``lts``):
 
 - safeness: a firing that puts a second token into a place is a flagged sink state;
 - deadlocks: a state of the final composition with no move that is neither final nor unsafe;
-- with ``detail``: for each component, the composition of the *rest* (prefix and suffix of
-  the order, reduced, only the transitions shared with the component visible) with the
-  component's own LTS in which its ITERATION transitions stay visible and two kinds of
-  state are flagged: "some place of behaviour b is marked" (which behaviours are
-  reachable) and "the subsystem is not finished" (``progress.live_places``). On it the
-  progress check of ``progress``: a reachable unfinished state from which neither an
-  iteration nor a deadlock can be reached.
+- with ``detail``: for each subsystem, the whole net composed again along the path from the
+  subsystem's page to the root (every other subtree as built for the verdict, the system
+  page resumed from the step before the subsystem's agent), with the subsystem's ITERATION
+  transitions visible and two kinds of state flagged: "some place of behaviour b is marked"
+  (which behaviours are reachable) and "the subsystem is not finished"
+  (``progress.live_places``). On it the progress check of ``progress``: a reachable
+  unfinished state from which neither an iteration nor a deadlock can be reached.
 
 Dead transitions are not computed here (each would have to stay visible).
 
@@ -47,7 +48,7 @@ from rssm_dsl.verify.compose.lts import (
 )
 from rssm_dsl.verify.compose.order import composition_order
 from rssm_dsl.verify.compose.product import TooLarge, product
-from rssm_dsl.verify.compose.tree import SUBSYSTEM_KINDS, Node, is_fusion, page_tree
+from rssm_dsl.verify.compose.tree import SUBSYSTEM_KINDS, is_fusion, page_tree
 from rssm_dsl.verify.netbits import NetBits, bits
 from rssm_dsl.verify.progress import live_places
 
@@ -125,10 +126,13 @@ def _run(net: FlatNet, nb: NetBits, max_states: int, deadline: float | None, det
         if on_step is not None:
             on_step(phase, done, len(nodes))
 
-    def minimized(lts: Lts, groups: Sequence[frozenset[int]] = ()) -> Lts:
+    def counted(lts: Lts) -> Lts:
         res.states += lts.size
         res.largest = max(res.largest, lts.size)
-        return minimize(lts, groups)
+        return lts
+
+    def minimized(lts: Lts, groups: Sequence[frozenset[int]] = ()) -> Lts:
+        return minimize(counted(lts), groups)
 
     def compose(x: Lts, y: Lts, hidden: frozenset[int] | set[int],
                 groups: Sequence[frozenset[int]] = ()) -> Lts:
@@ -258,9 +262,7 @@ def _run(net: FlatNet, nb: NetBits, max_states: int, deadline: float | None, det
             if q == len(order) and not visible and k_root:
                 # the whole net with nothing visible: its deadlocks and flags are read off
                 # the product directly, a reduction would be wasted
-                cur = product(cur, segment, frozenset(hidden), max_states)
-                res.states += cur.size
-                res.largest = max(res.largest, cur.size)
+                cur = counted(product(cur, segment, frozenset(hidden), max_states))
                 continue
             cur = compose(cur, segment, hidden,
                           interfaces((cur.alphabet | segment.alphabet) - hidden))
@@ -350,10 +352,6 @@ def _entries(nb: NetBits, inside: int) -> frozenset[int]:
             if not nb.pre[t] & inside:
                 found.add(t)
     return frozenset(found)
-
-
-def _has_subsystem(nodes: list[Node], k: int) -> bool:
-    return any(n.kind in SUBSYSTEM_KINDS for n in nodes[nodes[k].first:nodes[k].last])
 
 
 def _behaviour_places(net: FlatNet, subsystem: str) -> dict[tuple[str, str], int]:

@@ -33,6 +33,8 @@ from __future__ import annotations
 from collections.abc import Sequence
 from dataclasses import dataclass
 
+from rssm_dsl.verify.scc import components
+
 TAU = -1
 FINAL = 1
 UNSAFE = 2          # a firing put a second token into a place: a sink
@@ -71,61 +73,6 @@ def _silent_components(lts: Lts) -> tuple[list[int], int]:
     flags = lts.flags
     return components([[w for a, w in edges if a == TAU and w != v and flags[w] == flags[v]]
                        for v, edges in enumerate(lts.out)])
-
-
-def components(succ: list[list[int]]) -> tuple[list[int], int]:
-    """Tarjan, iteratively: the strongly connected component of every node and their number;
-    components are numbered in the order Tarjan closes them, successors first."""
-    n = len(succ)
-    index = [-1] * n
-    low = [0] * n
-    comp = [-1] * n
-    on_stack = [False] * n
-    stack: list[int] = []
-    counter = 0
-    ncomp = 0
-    for root in range(n):
-        if index[root] >= 0:
-            continue
-        work: list[tuple[int, int]] = [(root, 0)]
-        index[root] = low[root] = counter
-        counter += 1
-        stack.append(root)
-        on_stack[root] = True
-        while work:
-            v, i = work[-1]
-            edges = succ[v]
-            advanced = False
-            while i < len(edges):
-                w = edges[i]
-                i += 1
-                if index[w] < 0:
-                    work[-1] = (v, i)
-                    index[w] = low[w] = counter
-                    counter += 1
-                    stack.append(w)
-                    on_stack[w] = True
-                    work.append((w, 0))
-                    advanced = True
-                    break
-                if on_stack[w] and index[w] < low[v]:
-                    low[v] = index[w]
-            if advanced:
-                continue
-            work.pop()
-            if work:
-                u = work[-1][0]
-                if low[v] < low[u]:
-                    low[u] = low[v]
-            if low[v] == index[v]:
-                while True:
-                    w = stack.pop()
-                    on_stack[w] = False
-                    comp[w] = ncomp
-                    if w == v:
-                        break
-                ncomp += 1
-    return comp, ncomp
 
 
 UNBOUNDED = -1
