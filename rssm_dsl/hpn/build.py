@@ -12,6 +12,7 @@ from __future__ import annotations
 
 from dataclasses import dataclass, field
 
+from rssm_core.modes import Slot, Step, receive_net, send_net
 from rssm_dsl.hpn import names as N
 from rssm_dsl.hpn.flat import Role
 from rssm_dsl.hpn.ir import (
@@ -331,32 +332,34 @@ class HpnBuilder:
                          Operation(op_kind, o.id, f"{verb} {buf.name}", w, buf.name,
                                    channel=ch.id))
 
-        def t(n: int, label: str, role: Role) -> str:
-            return self._trans(N.transition(*pb, n, sup=sup), pid, buf.span, f"{who} {label}", role)
-
         mode = buf.mode
-        if verb == "snd":
-            r = Role.SEND
-            self._arcs(pid, [p_in, empty], t(1, f"starts sending {buf.name} ({mode.value}, "
-                                                f"{chan} empty)", r), [op])
-            if mode is ast.Mode.NONBLOCKING:
-                self._arcs(pid, [p_in, full], t(2, f"overwrites unread {buf.name} "
-                                                   "(nonblocking)", r), [op])
-                self._arcs(pid, [op], t(3, f"has sent {buf.name}", r), [p_out, full])
-            else:
-                wait = self._place(N.place(*pb, "wait", sup=sup), pid, buf.span,
-                                   f"{who} waits in blocking send of {buf.name} on {chan}")
-                self._arcs(pid, [op], t(3, f"has sent {buf.name}, waits until it is taken", r),
-                           [wait, full])
-                self._arcs(pid, [wait, empty], t(4, f"sees {buf.name} taken (blocking)", r),
-                           [p_out, empty])
-        else:
-            r = Role.RECEIVE
-            self._arcs(pid, [p_in, full], t(1, f"takes new {buf.name} ({mode.value})", r), [op])
-            self._arcs(pid, [op], t(2, f"has received {buf.name}", r), [p_out, empty])
-            if mode is ast.Mode.NONBLOCKING:
-                self._arcs(pid, [p_in, empty], t(3, f"finds no new {buf.name} (nonblocking)", r),
-                           [p_out, empty])
+        labels = {
+            Step.START_SEND: f"starts sending {buf.name} ({mode.value}, {chan} empty)",
+            Step.OVERWRITE: f"overwrites unread {buf.name} (nonblocking)",
+            Step.SENT: f"has sent {buf.name}",
+            Step.SENT_WAIT: f"has sent {buf.name}, waits until it is taken",
+            Step.SEEN_TAKEN: f"sees {buf.name} taken (blocking)",
+            Step.TAKE: f"takes new {buf.name} ({mode.value})",
+            Step.RECEIVED: f"has received {buf.name}",
+            Step.NOTHING_NEW: f"finds no new {buf.name} (nonblocking)",
+        }
+        places = {Slot.IN: p_in, Slot.OUT: p_out, Slot.OP: op, Slot.FULL: full,
+                  Slot.EMPTY: empty}
+
+        def place(slot: Slot) -> str:
+            if slot not in places:            # Slot.WAIT, made when first needed
+                places[slot] = self._place(
+                    N.place(*pb, "wait", sup=sup), pid, buf.span,
+                    f"{who} waits in blocking send of {buf.name} on {chan}")
+            return places[slot]
+
+        role = Role.SEND if verb == "snd" else Role.RECEIVE
+        for tr in send_net(mode) if verb == "snd" else receive_net(mode):
+            inputs = [place(x) for x in tr.inputs]
+            outputs = [place(x) for x in tr.outputs]
+            tid = self._trans(N.transition(*pb, tr.number, sup=sup), pid, buf.span,
+                              f"{who} {labels[tr.step]}", role)
+            self._arcs(pid, inputs, tid, outputs)
         return pid
 
     # ------------------------------------------------------------------ devices

@@ -38,7 +38,7 @@ from rssm_dsl.hpn.flatten import flatten
 from rssm_dsl.hpn.ir import HPN, CondKind, Operation, OpKind, PageKind
 from rssm_dsl.interp.channels import ChannelState
 from rssm_dsl.interp.clock import SimClock, Ticker, WallClock
-from rssm_dsl.interp.compile_expr import ExprCompiler, Fn, check_signature
+from rssm_dsl.interp.compile_expr import ExprCompiler, check_signature
 from rssm_dsl.interp.device import Device as DeviceImpl
 from rssm_dsl.interp.device import DeviceConfigError, DeviceSpec
 from rssm_dsl.interp.errors import EvalError, SetupError
@@ -50,7 +50,6 @@ from rssm_dsl.semantics.model import Device, Extern, Subsystem, System, Variable
 from rssm_dsl.semantics.typecheck import Symbol
 from rssm_dsl.semantics.types import BOOL
 from rssm_dsl.source import Span
-from rssm_dsl.syntax import ast
 
 Op = Callable[[], None]
 Guard = Callable[[], bool]
@@ -339,26 +338,11 @@ class _Builder:
                else -case.index)
         if key in cache:
             return cache[key]
-        run, written = compiler.body(case.body)
+        run, _ = compiler.case(case.body)
         stage, variables = s.stage, s.vars
-        single = (len(case.body) == 1 and isinstance(case.body[0], ast.Assign)
-                  and isinstance(case.body[0].target, ast.Name))
-        if single:
-            stmt = case.body[0]
-            assert isinstance(stmt, ast.Assign) and isinstance(stmt.target, ast.Name)
-            value: Fn = compiler.expr(stmt.value, compiler.type_of(stmt.target))
-            name = stmt.target.name
-
-            def assign_one() -> None:
-                stage[name] = value(variables)
-            cache[key] = assign_one
-            return assign_one
 
         def partial_function() -> None:
-            work = variables.copy()
-            run(work)
-            for n in written:
-                stage[n] = work[n]
+            run(variables, stage)
         cache[key] = partial_function
         return partial_function
 

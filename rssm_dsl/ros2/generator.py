@@ -29,9 +29,9 @@ from jinja2 import Environment, PackageLoader, StrictUndefined
 from rssm_dsl.diagnostics import Diagnostic
 from rssm_dsl.emit.write import write_outputs
 from rssm_dsl.pipeline import Compilation
+from rssm_dsl.pycode import comment, tuple_source
 from rssm_dsl.ros2.evaluate import SpecValues
 from rssm_dsl.ros2.names import NameChecker
-from rssm_dsl.ros2.pycode import comment, tuple_source
 from rssm_dsl.ros2.viewmodel import RUNTIME_MODULES, Options, WorkspaceView, build_view
 from rssm_dsl.syntax import ast
 

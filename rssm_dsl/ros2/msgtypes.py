@@ -20,8 +20,8 @@ from __future__ import annotations
 
 from dataclasses import dataclass
 
+from rssm_dsl.pycode import tuple_source
 from rssm_dsl.ros2.names import pascal
-from rssm_dsl.ros2.pycode import tuple_source
 from rssm_dsl.semantics.types import ArrayT, RecordT, Scalar, Type
 
 SCALAR_FIELD = {"bool": "bool", "int": "int64", "float": "float64"}

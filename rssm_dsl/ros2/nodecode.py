@@ -13,8 +13,8 @@ from typing import Any
 
 import numpy as np
 
-from rssm_dsl.ros2.msgtypes import MessageTypes
-from rssm_dsl.ros2.pycode import (
+from rssm_core.modes import pairing
+from rssm_dsl.pycode import (
     PyGen,
     TypeTable,
     comment,
@@ -25,6 +25,7 @@ from rssm_dsl.ros2.pycode import (
     tuple_source,
     var,
 )
+from rssm_dsl.ros2.msgtypes import MessageTypes
 from rssm_dsl.semantics.behaviours import combination_text
 from rssm_dsl.semantics.model import (
     Arrangement,
@@ -55,8 +56,7 @@ class ChannelView:
     topic: str
     sample: str
     desc: str
-    producer_blocking: bool
-    consumer_blocking: bool
+    pairing: str          # the member of rssm_core.modes.Pairing
     modes: str
 
 
@@ -194,8 +194,7 @@ class Context:
         if src not in descs:
             descs[src] = f"M{len(descs)}"
         return ChannelView(buf.name, ch.id, self.topic(ch), sample, descs[src],
-                           ch.producer.mode.value == "blocking",
-                           ch.consumer.mode.value == "blocking", ch.modes)
+                           pairing(ch.producer.mode, ch.consumer.mode).name, ch.modes)
 
 
 def const_lines(system: System, types: TypeTable) -> list[str]:

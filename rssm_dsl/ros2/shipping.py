@@ -5,6 +5,10 @@ shipped as the package ``rssm_stdlib`` with the one sub-package or module named)
 folder of the specification (the top-level module or package named). A module found in
 neither is expected to be installed in the Python environment ROS 2 runs in (warning W861).
 
+The semantics core, the package ``rssm_core`` (values and their operations, communication
+modes, trace format), is always shipped, unchanged: the nodes run the very code the
+interpreter runs.
+
 The shipped files are copied into the runtime package beside its own Python package and
 installed with it (setup.py lists them)."""
 
@@ -13,6 +17,7 @@ from __future__ import annotations
 from dataclasses import dataclass, field
 from pathlib import Path
 
+import rssm_core
 from rssm_dsl.bindings import STDLIB_PACKAGE
 from rssm_dsl.resources import stdlib_dir
 
@@ -48,6 +53,7 @@ class Shipment:
 def ship(modules: dict[str, str], spec_dir: Path) -> Shipment:
     """``modules`` maps each module to ship to a binding that uses it (for messages)."""
     out = Shipment()
+    out.add_tree(Path(rssm_core.__file__).resolve().parent, "rssm_core", "rssm_core")
     for module, binding in sorted(modules.items()):
         parts = module.split(".")
         if parts[0] == STDLIB_PACKAGE:

@@ -28,7 +28,7 @@ from rssm_dsl.semantics.model import System, Variable
 from rssm_dsl.semantics.types import ArrayT, RecordT, Scalar, Type
 
 VERSION = "0.1.0"
-RUNTIME_MODULES = ("values", "messages", "channels", "params", "loop", "subsystem", "device",
+RUNTIME_MODULES = ("messages", "channels", "params", "loop", "subsystem", "device",
                    "bindings")
 
 

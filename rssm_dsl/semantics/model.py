@@ -10,6 +10,7 @@ from __future__ import annotations
 
 from dataclasses import dataclass, field
 
+from rssm_core.modes import pairing
 from rssm_dsl.semantics.types import Type
 from rssm_dsl.source import Span
 from rssm_dsl.syntax import ast
@@ -76,7 +77,7 @@ class Channel:
 
     @property
     def modes(self) -> str:
-        return f"{self.producer.mode.value}/{self.consumer.mode.value}"
+        return pairing(self.producer.mode, self.consumer.mode).text
 
 
 @dataclass(frozen=True)

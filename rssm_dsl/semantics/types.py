@@ -65,23 +65,12 @@ def assignable(src: Type, dst: Type) -> bool:
     return False
 
 
-def default_value(t: Type) -> Any:
-    """The value a buffer or memory variable holds before anything is written to it."""
-    if t == BOOL:
-        return False
-    if t == INT:
-        return 0
-    if t == FLOAT:
-        return 0.0
-    if isinstance(t, ArrayT):
-        return [default_value(t.element) for _ in range(t.size)]
-    assert isinstance(t, RecordT)
-    return {n: default_value(ft) for n, ft in t.fields}
-
-
-def to_json(t: Type) -> Any:
+def descriptor(t: Type) -> tuple[Any, ...]:
+    """The value descriptor of a type, as the semantics core reads it (rssm_core.values):
+    ``("bool",)``, ``("int",)``, ``("float",)``, ``("array", ELEMENT, N)``,
+    ``("record", NAME, ((FIELD, DESCRIPTOR), ...))``."""
     if isinstance(t, Scalar):
-        return t.name
+        return (t.name,)
     if isinstance(t, ArrayT):
-        return {"array": to_json(t.element), "size": t.size}
-    return {"record": t.name, "fields": {n: to_json(ft) for n, ft in t.fields}}
+        return ("array", descriptor(t.element), t.size)
+    return ("record", t.name, tuple((n, descriptor(ft)) for n, ft in t.fields))

@@ -5,6 +5,7 @@ from __future__ import annotations
 from dataclasses import dataclass
 from enum import Enum
 
+from rssm_core.modes import Mode
 from rssm_dsl.source import Span
 
 # ---------------------------------------------------------------- types
@@ -129,11 +130,6 @@ Stmt = Assign | Let | Skip
 class Direction(str, Enum):
     INPUT = "input"
     OUTPUT = "output"
-
-
-class Mode(str, Enum):
-    BLOCKING = "blocking"
-    NONBLOCKING = "nonblocking"
 
 
 class SubsystemKind(str, Enum):

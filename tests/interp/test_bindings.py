@@ -86,7 +86,7 @@ def test_wrong_return_type_is_e803_and_stops(tmp_path: Path) -> None:
     _, result = run(comp, max_steps=100)
     assert result.reason == "error"
     (d,) = result.diagnostics
-    assert d.code == "E803" and "str" in d.message and "declared -> float" in d.message
+    assert d.code == "E803" and "str" in d.message and "where float is expected" in d.message
 
 
 def test_failure_without_error_condition_stops_cleanly_and_flushes_the_trace(

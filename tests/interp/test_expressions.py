@@ -141,4 +141,4 @@ def test_index_out_of_range_is_reported(tmp_path: Path) -> None:
         "      memory i: int = 0\n      memory x: float = 0.0\n"))
     _, result = run(comp, max_steps=200)
     assert result.reason == "error"
-    assert "index 3 is out of range for float[3]" in result.diagnostics[0].message
+    assert "index 3 is out of range (indices run from 0 to 2)" in result.diagnostics[0].message

@@ -33,8 +33,10 @@ from typing import Any
 from rclpy.node import Node
 from rclpy.qos import DurabilityPolicy, HistoryPolicy, QoSProfile, ReliabilityPolicy
 
+from rssm_core.modes import Pairing, Rule, rule
+from rssm_core.values import Desc
+
 from .messages import from_msg, to_msg
-from .values import Desc
 
 DATA_QOS = QoSProfile(history=HistoryPolicy.KEEP_LAST, depth=1,
                       reliability=ReliabilityPolicy.RELIABLE,
@@ -54,18 +56,19 @@ class ChannelSpec:
     sample: Any              # the <Type>Sample message class
     ack: Any                 # the Ack message class
     desc: Desc               # message descriptor of the value (see .messages)
-    producer_blocking: bool
-    consumer_blocking: bool
+    pairing: Pairing         # the producer's and the consumer's mode
 
     @property
     def ack_topic(self) -> str:
         return self.topic + "/ack"
 
     @property
+    def rule(self) -> Rule:
+        return rule(self.pairing)
+
+    @property
     def modes(self) -> str:
-        p = "blocking" if self.producer_blocking else "nonblocking"
-        c = "blocking" if self.consumer_blocking else "nonblocking"
-        return f"{p}/{c}"
+        return self.pairing.text
 
 
 class Outbox:
@@ -73,11 +76,11 @@ class Outbox:
 
     def __init__(self, node: Node, spec: ChannelSpec, resend_period: float) -> None:
         self.spec = spec
-        self.blocking = spec.producer_blocking
+        self.blocking = spec.rule.producer_waits_until_taken
         self.resend_period = resend_period
         self.pub = node.create_publisher(spec.sample, spec.topic, DATA_QOS)
         self.ack_sub = (node.create_subscription(spec.ack, spec.ack_topic, self._on_ack, ACK_QOS)
-                        if self.blocking else None)
+                        if spec.rule.acknowledged else None)
         self.to_msg = to_msg(spec.desc)
         self.epoch = random.getrandbits(32)
         self.seq = 0
@@ -129,10 +132,10 @@ class Inbox:
 
     def __init__(self, node: Node, spec: ChannelSpec) -> None:
         self.spec = spec
-        self.blocking = spec.consumer_blocking
+        self.blocking = spec.rule.consumer_waits_for_data
         self.sub = node.create_subscription(spec.sample, spec.topic, self._on_sample, DATA_QOS)
         self.ack_pub = (node.create_publisher(spec.ack, spec.ack_topic, ACK_QOS)
-                        if spec.producer_blocking else None)
+                        if spec.rule.acknowledged else None)
         self.from_msg = from_msg(spec.desc)
         self.latest: Any = None
         self.taken_epoch: int | None = None

@@ -24,11 +24,12 @@ import rclpy
 from rclpy.executors import ExternalShutdownException, SingleThreadedExecutor
 from rclpy.node import Node
 
+from rssm_core.values import Desc, ValueTypeError, converter, type_text
+
 from .bindings import load
 from .channels import ChannelSpec
 from .loop import Loop
 from .params import ParamSpec, SetupError, read_params, runtime_params
-from .values import Desc, ValueTypeError, converter, type_text
 
 EXIT_OK, EXIT_FAILED, EXIT_SETUP = 0, 1, 2
 

@@ -17,7 +17,7 @@ from typing import Any
 
 import numpy as np
 
-from .values import Desc, float_array
+from rssm_core.values import Desc, float_array
 
 ToMsg = Callable[[Any], Any]
 FromMsg = Callable[[Any], Any]

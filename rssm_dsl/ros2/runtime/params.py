@@ -24,7 +24,7 @@ from typing import Any
 from rcl_interfaces.msg import ParameterDescriptor
 from rclpy.node import Node
 
-from .values import ValueTypeError, converter, type_text
+from rssm_core.values import ValueTypeError, converter, type_text
 
 
 class SetupError(Exception):

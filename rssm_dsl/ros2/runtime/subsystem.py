@@ -40,10 +40,11 @@ from rclpy.executors import ExternalShutdownException, SingleThreadedExecutor
 from rclpy.node import Node
 from rclpy.qos import DurabilityPolicy, HistoryPolicy, QoSProfile, ReliabilityPolicy
 
+from rssm_core.values import OperationError, to_json
+
 from .channels import ChannelSpec
 from .loop import WAIT_SLICE, Arrangement, Loop
 from .params import ParamSpec, RuntimeParams, SetupError, read_params, runtime_params
-from .values import OperationError, to_json
 
 DIAGNOSTICS_QOS = QoSProfile(history=HistoryPolicy.KEEP_LAST, depth=100,
                              reliability=ReliabilityPolicy.RELIABLE,

@@ -6,7 +6,7 @@ package_name = 'tracker_runtime'
 setup(
     name=package_name,
     version='0.1.0',
-    packages=['rssm_stdlib', 'rssm_stdlib.devices', 'tracker_runtime'],
+    packages=['rssm_core', 'rssm_stdlib', 'rssm_stdlib.devices', 'tracker_runtime'],
     py_modules=[],
     package_data={
     },

@@ -6,7 +6,7 @@ package_name = 'lwr4_circle_runtime'
 setup(
     name=package_name,
     version='0.1.0',
-    packages=['lwr4_circle_runtime', 'rssm_stdlib', 'rssm_stdlib.lwr4plus'],
+    packages=['lwr4_circle_runtime', 'rssm_core', 'rssm_stdlib', 'rssm_stdlib.lwr4plus'],
     py_modules=[],
     package_data={
         'rssm_stdlib.lwr4plus': ['README.md', 'lwr4plus.xml'],

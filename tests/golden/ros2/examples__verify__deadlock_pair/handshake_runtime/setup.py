@@ -6,7 +6,7 @@ package_name = 'handshake_runtime'
 setup(
     name=package_name,
     version='0.1.0',
-    packages=['handshake_runtime'],
+    packages=['handshake_runtime', 'rssm_core'],
     py_modules=[],
     package_data={
     },

@@ -6,7 +6,7 @@ package_name = 'handshake_with_conveyor_runtime'
 setup(
     name=package_name,
     version='0.1.0',
-    packages=['handshake_with_conveyor_runtime'],
+    packages=['handshake_with_conveyor_runtime', 'rssm_core'],
     py_modules=[],
     package_data={
     },

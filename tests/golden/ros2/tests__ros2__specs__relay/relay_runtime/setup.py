@@ -6,7 +6,7 @@ package_name = 'relay_runtime'
 setup(
     name=package_name,
     version='0.1.0',
-    packages=['relay_runtime'],
+    packages=['relay_runtime', 'rssm_core'],
     py_modules=[],
     package_data={
     },

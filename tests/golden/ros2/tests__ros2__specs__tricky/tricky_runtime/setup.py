@@ -6,7 +6,7 @@ package_name = 'tricky_runtime'
 setup(
     name=package_name,
     version='0.1.0',
-    packages=['tricky_runtime'],
+    packages=['rssm_core', 'tricky_runtime'],
     py_modules=[],
     package_data={
     },

@@ -6,7 +6,7 @@ package_name = 'wire_runtime'
 setup(
     name=package_name,
     version='0.1.0',
-    packages=['wire_runtime'],
+    packages=['rssm_core', 'wire_runtime'],
     py_modules=['gadget_device', 'gadget_ops'],
     package_data={
     },

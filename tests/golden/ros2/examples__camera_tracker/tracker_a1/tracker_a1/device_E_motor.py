@@ -8,6 +8,7 @@ driver may take this node's place: it must speak the same topics (see the worksp
 
 from __future__ import annotations
 
+from rssm_core.modes import Pairing as _Pairing
 from tracker_interfaces import msg as _msg
 from tracker_runtime.channels import ChannelSpec as _Channel
 from tracker_runtime.device import DeviceNodeSpec as _Device
@@ -31,11 +32,11 @@ SPEC = _Device(
     outputs=(('angle', T0),),
     channels_in=(
         _Channel('command', 'a1.e.pan.command->a1.E.motor.command', '/a1/e_pan/command', _msg.Float64Sample, _msg.Ack, M0,
-                 producer_blocking=False, consumer_blocking=False),
+                 _Pairing.NONBLOCKING_NONBLOCKING),
     ),
     channels_out=(
         _Channel('angle', 'a1.E.motor.angle->a1.e.pan.angle', '/a1/E_motor/angle', _msg.Float64Sample, _msg.Ack, M0,
-                 producer_blocking=False, consumer_blocking=False),
+                 _Pairing.NONBLOCKING_NONBLOCKING),
     ),
     initial={
         'command': 0.0,

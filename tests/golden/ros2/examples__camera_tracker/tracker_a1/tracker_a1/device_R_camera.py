@@ -8,6 +8,7 @@ driver may take this node's place: it must speak the same topics (see the worksp
 
 from __future__ import annotations
 
+from rssm_core.modes import Pairing as _Pairing
 from tracker_interfaces import msg as _msg
 from tracker_runtime.channels import ChannelSpec as _Channel
 from tracker_runtime.device import DeviceNodeSpec as _Device
@@ -33,7 +34,7 @@ SPEC = _Device(
     ),
     channels_out=(
         _Channel('frame', 'a1.R.camera.frame->a1.r.vision.frame', '/a1/R_camera/frame', _msg.BlobSample, _msg.Ack, M0,
-                 producer_blocking=False, consumer_blocking=False),
+                 _Pairing.NONBLOCKING_NONBLOCKING),
     ),
     initial={
         'frame': {'visible': False, 'x': 0.0, 'size': 0.0},

@@ -15,7 +15,8 @@ from collections.abc import Mapping
 from typing import Any
 
 from tracker_interfaces import msg as _msg
-from tracker_runtime import values as _rt
+import rssm_core.values as _rt
+from rssm_core.modes import Pairing as _Pairing
 from tracker_runtime.bindings import load as _load
 from tracker_runtime.channels import ChannelSpec as _Channel
 from tracker_runtime.params import ParamSpec as _Param
@@ -99,8 +100,8 @@ def f_2_2_1(st: State, stage: dict[str, Any]) -> None:
     v_heading = st.v_heading
     v_target = st.v_target
     v_unseen = st.v_unseen
-    v_heading = min(max((v_heading + (v_gain * v_target['x'])), (-1.5)), 1.5)
-    v_unseen = (0 if v_target['visible'] else (v_unseen + 1))
+    v_heading = _rt.fclamp((v_heading + (v_gain * v_target['x'])), (-1.5), 1.5)
+    v_unseen = (0 if v_target['visible'] else _rt.iadd(v_unseen, 1, 'examples/camera_tracker.rssm:73:53'))
     stage['v_heading'] = v_heading
     stage['v_unseen'] = v_unseen
 
@@ -108,7 +109,7 @@ def f_2_2_1(st: State, stage: dict[str, Any]) -> None:
 def f_2_2_2(st: State, stage: dict[str, Any]) -> None:
     # track: update memory, examples/camera_tracker.rssm:75
     v_unseen = st.v_unseen
-    v_unseen = (v_unseen + 1)
+    v_unseen = _rt.iadd(v_unseen, 1, 'examples/camera_tracker.rssm:75:23')
     stage['v_unseen'] = v_unseen
 
 
@@ -210,11 +211,11 @@ SPEC = _Subsystem(
     ),
     inputs=(
         _Channel('target', 'a1.r.vision.target->a1.c.target', '/a1/r_vision/target', _msg.BlobSample, _msg.Ack, M0,
-                 producer_blocking=False, consumer_blocking=False),
+                 _Pairing.NONBLOCKING_NONBLOCKING),
     ),
     outputs=(
         _Channel('goal', 'a1.c.goal->a1.e.pan.goal', '/a1/c/goal', _msg.Float64Sample, _msg.Ack, M1,
-                 producer_blocking=False, consumer_blocking=False),
+                 _Pairing.NONBLOCKING_NONBLOCKING),
     ),
     initial='search',
     behaviours={

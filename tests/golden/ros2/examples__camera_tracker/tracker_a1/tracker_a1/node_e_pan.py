@@ -15,7 +15,8 @@ from collections.abc import Mapping
 from typing import Any
 
 from tracker_interfaces import msg as _msg
-from tracker_runtime import values as _rt
+import rssm_core.values as _rt
+from rssm_core.modes import Pairing as _Pairing
 from tracker_runtime.bindings import load as _load
 from tracker_runtime.channels import ChannelSpec as _Channel
 from tracker_runtime.params import ParamSpec as _Param
@@ -65,7 +66,7 @@ def f_1_1_1(st: State, stage: dict[str, Any]) -> None:
     v_angle = st.v_angle
     v_rate = st.v_rate
     v_target_angle = st.v_target_angle
-    v_command = (v_angle + min(max((v_target_angle - v_angle), (-v_rate)), v_rate))
+    v_command = (v_angle + _rt.fclamp((v_target_angle - v_angle), (-v_rate), v_rate))
     stage['v_command'] = v_command
 
 
@@ -130,13 +131,13 @@ SPEC = _Subsystem(
     ),
     inputs=(
         _Channel('goal', 'a1.c.goal->a1.e.pan.goal', '/a1/c/goal', _msg.Float64Sample, _msg.Ack, M0,
-                 producer_blocking=False, consumer_blocking=False),
+                 _Pairing.NONBLOCKING_NONBLOCKING),
         _Channel('angle', 'a1.E.motor.angle->a1.e.pan.angle', '/a1/E_motor/angle', _msg.Float64Sample, _msg.Ack, M0,
-                 producer_blocking=False, consumer_blocking=False),
+                 _Pairing.NONBLOCKING_NONBLOCKING),
     ),
     outputs=(
         _Channel('command', 'a1.e.pan.command->a1.E.motor.command', '/a1/e_pan/command', _msg.Float64Sample, _msg.Ack, M0,
-                 producer_blocking=False, consumer_blocking=False),
+                 _Pairing.NONBLOCKING_NONBLOCKING),
     ),
     initial='drive',
     behaviours={

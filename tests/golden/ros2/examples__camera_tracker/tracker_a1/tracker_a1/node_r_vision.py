@@ -15,7 +15,8 @@ from collections.abc import Mapping
 from typing import Any
 
 from tracker_interfaces import msg as _msg
-from tracker_runtime import values as _rt
+import rssm_core.values as _rt
+from rssm_core.modes import Pairing as _Pairing
 from tracker_runtime.bindings import load as _load
 from tracker_runtime.channels import ChannelSpec as _Channel
 from tracker_runtime.params import ParamSpec as _Param
@@ -117,11 +118,11 @@ SPEC = _Subsystem(
     ),
     inputs=(
         _Channel('frame', 'a1.R.camera.frame->a1.r.vision.frame', '/a1/R_camera/frame', _msg.BlobSample, _msg.Ack, M0,
-                 producer_blocking=False, consumer_blocking=False),
+                 _Pairing.NONBLOCKING_NONBLOCKING),
     ),
     outputs=(
         _Channel('target', 'a1.r.vision.target->a1.c.target', '/a1/r_vision/target', _msg.BlobSample, _msg.Ack, M0,
-                 producer_blocking=False, consumer_blocking=False),
+                 _Pairing.NONBLOCKING_NONBLOCKING),
     ),
     initial='filter',
     behaviours={

@@ -8,6 +8,7 @@ driver may take this node's place: it must speak the same topics (see the worksp
 
 from __future__ import annotations
 
+from rssm_core.modes import Pairing as _Pairing
 from lwr4_circle_interfaces import msg as _msg
 from lwr4_circle_runtime.channels import ChannelSpec as _Channel
 from lwr4_circle_runtime.device import DeviceNodeSpec as _Device
@@ -33,11 +34,11 @@ SPEC = _Device(
     outputs=(('state', T1),),
     channels_in=(
         _Channel('torque', 'a1.e.lwr.torque->a1.E.lwr.torque', '/a1/e_lwr/torque', _msg.Float64Array7Sample, _msg.Ack, M0,
-                 producer_blocking=False, consumer_blocking=False),
+                 _Pairing.NONBLOCKING_NONBLOCKING),
     ),
     channels_out=(
         _Channel('state', 'a1.E.lwr.state->a1.e.lwr.state', '/a1/E_lwr/state', _msg.LwrStateSample, _msg.Ack, M1,
-                 producer_blocking=False, consumer_blocking=False),
+                 _Pairing.NONBLOCKING_NONBLOCKING),
     ),
     initial={
         'torque': [0.0, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0],

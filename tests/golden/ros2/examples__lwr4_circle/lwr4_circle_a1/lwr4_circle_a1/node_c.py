@@ -15,7 +15,8 @@ from collections.abc import Mapping
 from typing import Any
 
 from lwr4_circle_interfaces import msg as _msg
-from lwr4_circle_runtime import values as _rt
+import rssm_core.values as _rt
+from rssm_core.modes import Pairing as _Pairing
 from lwr4_circle_runtime.bindings import load as _load
 from lwr4_circle_runtime.channels import ChannelSpec as _Channel
 from lwr4_circle_runtime.params import ParamSpec as _Param
@@ -195,7 +196,7 @@ SPEC = _Subsystem(
     ),
     outputs=(
         _Channel('cmd', 'a1.c.cmd->a1.e.lwr.setpoint', '/a1/c/cmd', _msg.CartesianSetpointSample, _msg.Ack, M0,
-                 producer_blocking=False, consumer_blocking=False),
+                 _Pairing.NONBLOCKING_NONBLOCKING),
     ),
     initial='cw',
     behaviours={

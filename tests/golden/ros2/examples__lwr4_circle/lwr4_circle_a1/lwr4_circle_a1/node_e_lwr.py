@@ -15,7 +15,8 @@ from collections.abc import Mapping
 from typing import Any
 
 from lwr4_circle_interfaces import msg as _msg
-from lwr4_circle_runtime import values as _rt
+import rssm_core.values as _rt
+from rssm_core.modes import Pairing as _Pairing
 from lwr4_circle_runtime.bindings import load as _load
 from lwr4_circle_runtime.channels import ChannelSpec as _Channel
 from lwr4_circle_runtime.params import ParamSpec as _Param
@@ -175,13 +176,13 @@ SPEC = _Subsystem(
     ),
     inputs=(
         _Channel('setpoint', 'a1.c.cmd->a1.e.lwr.setpoint', '/a1/c/cmd', _msg.CartesianSetpointSample, _msg.Ack, M0,
-                 producer_blocking=False, consumer_blocking=False),
+                 _Pairing.NONBLOCKING_NONBLOCKING),
         _Channel('state', 'a1.E.lwr.state->a1.e.lwr.state', '/a1/E_lwr/state', _msg.LwrStateSample, _msg.Ack, M1,
-                 producer_blocking=False, consumer_blocking=False),
+                 _Pairing.NONBLOCKING_NONBLOCKING),
     ),
     outputs=(
         _Channel('torque', 'a1.e.lwr.torque->a1.E.lwr.torque', '/a1/e_lwr/torque', _msg.Float64Array7Sample, _msg.Ack, M2,
-                 producer_blocking=False, consumer_blocking=False),
+                 _Pairing.NONBLOCKING_NONBLOCKING),
     ),
     initial='move',
     behaviours={

@@ -15,7 +15,8 @@ from collections.abc import Mapping
 from typing import Any
 
 from relay_interfaces import msg as _msg
-from relay_runtime import values as _rt
+import rssm_core.values as _rt
+from rssm_core.modes import Pairing as _Pairing
 from relay_runtime.bindings import load as _load
 from relay_runtime.channels import ChannelSpec as _Channel
 from relay_runtime.params import ParamSpec as _Param
@@ -69,7 +70,7 @@ def f_1_1_1(st: State, stage: dict[str, Any]) -> None:
 def f_1_2_1(st: State, stage: dict[str, Any]) -> None:
     # up: update memory, examples/relay_blocking.rssm:17
     v_reply = st.v_reply
-    v_count = (v_reply + 1)
+    v_count = _rt.iadd(v_reply, 1, 'examples/relay_blocking.rssm:17:34')
     stage['v_count'] = v_count
 
 
@@ -83,14 +84,14 @@ def cond_1_1(st: State) -> bool:
 def f_2_1_1(st: State, stage: dict[str, Any]) -> None:
     # down: update request, examples/relay_blocking.rssm:24
     v_count = st.v_count
-    v_request = (-v_count)
+    v_request = _rt.ineg(v_count, 'examples/relay_blocking.rssm:24:37')
     stage['v_request'] = v_request
 
 
 def f_2_2_1(st: State, stage: dict[str, Any]) -> None:
     # down: update memory, examples/relay_blocking.rssm:25
     v_count = st.v_count
-    v_count = (v_count - 1)
+    v_count = _rt.isub(v_count, 1, 'examples/relay_blocking.rssm:25:34')
     stage['v_count'] = v_count
 
 
@@ -183,11 +184,11 @@ SPEC = _Subsystem(
     ),
     inputs=(
         _Channel('reply', 'a2.c.reply->a1.c.reply', '/a2/c/reply', _msg.Int64Sample, _msg.Ack, M0,
-                 producer_blocking=False, consumer_blocking=True),
+                 _Pairing.NONBLOCKING_BLOCKING),
     ),
     outputs=(
         _Channel('request', 'a1.c.request->a2.c.request', '/a1/c/request', _msg.Int64Sample, _msg.Ack, M0,
-                 producer_blocking=True, consumer_blocking=True),
+                 _Pairing.BLOCKING_BLOCKING),
     ),
     initial='up',
     behaviours={

@@ -15,7 +15,8 @@ from collections.abc import Mapping
 from typing import Any
 
 from relay_interfaces import msg as _msg
-from relay_runtime import values as _rt
+import rssm_core.values as _rt
+from rssm_core.modes import Pairing as _Pairing
 from relay_runtime.bindings import load as _load
 from relay_runtime.channels import ChannelSpec as _Channel
 from relay_runtime.params import ParamSpec as _Param
@@ -60,7 +61,7 @@ def _initial(p: Mapping[str, Any]) -> State:
 def f_1_1_1(st: State, stage: dict[str, Any]) -> None:
     # answer: update reply, examples/relay_blocking.rssm:44
     v_request = st.v_request
-    v_reply = abs(v_request)
+    v_reply = _rt.iabs(v_request, 'examples/relay_blocking.rssm:45:22')
     stage['v_reply'] = v_reply
 
 
@@ -113,11 +114,11 @@ SPEC = _Subsystem(
     ),
     inputs=(
         _Channel('request', 'a1.c.request->a2.c.request', '/a1/c/request', _msg.Int64Sample, _msg.Ack, M0,
-                 producer_blocking=True, consumer_blocking=True),
+                 _Pairing.BLOCKING_BLOCKING),
     ),
     outputs=(
         _Channel('reply', 'a2.c.reply->a1.c.reply', '/a2/c/reply', _msg.Int64Sample, _msg.Ack, M0,
-                 producer_blocking=False, consumer_blocking=True),
+                 _Pairing.NONBLOCKING_BLOCKING),
     ),
     initial='answer',
     behaviours={

@@ -15,7 +15,8 @@ from collections.abc import Mapping
 from typing import Any
 
 from handshake_with_conveyor_interfaces import msg as _msg
-from handshake_with_conveyor_runtime import values as _rt
+import rssm_core.values as _rt
+from rssm_core.modes import Pairing as _Pairing
 from handshake_with_conveyor_runtime.bindings import load as _load
 from handshake_with_conveyor_runtime.channels import ChannelSpec as _Channel
 from handshake_with_conveyor_runtime.params import ParamSpec as _Param

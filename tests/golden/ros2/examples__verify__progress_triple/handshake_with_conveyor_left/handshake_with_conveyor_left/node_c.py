@@ -15,7 +15,8 @@ from collections.abc import Mapping
 from typing import Any
 
 from handshake_with_conveyor_interfaces import msg as _msg
-from handshake_with_conveyor_runtime import values as _rt
+import rssm_core.values as _rt
+from rssm_core.modes import Pairing as _Pairing
 from handshake_with_conveyor_runtime.bindings import load as _load
 from handshake_with_conveyor_runtime.channels import ChannelSpec as _Channel
 from handshake_with_conveyor_runtime.params import ParamSpec as _Param
@@ -122,11 +123,11 @@ SPEC = _Subsystem(
     ),
     inputs=(
         _Channel('theirs', 'right.c.mine->left.c.theirs', '/right/c/mine', _msg.Float64Sample, _msg.Ack, M0,
-                 producer_blocking=True, consumer_blocking=True),
+                 _Pairing.BLOCKING_BLOCKING),
     ),
     outputs=(
         _Channel('mine', 'left.c.mine->right.c.theirs', '/left/c/mine', _msg.Float64Sample, _msg.Ack, M0,
-                 producer_blocking=True, consumer_blocking=True),
+                 _Pairing.BLOCKING_BLOCKING),
     ),
     initial='exchange',
     behaviours={

@@ -15,7 +15,8 @@ from collections.abc import Mapping
 from typing import Any
 
 from relay_interfaces import msg as _msg
-from relay_runtime import values as _rt
+import rssm_core.values as _rt
+from rssm_core.modes import Pairing as _Pairing
 from relay_runtime.bindings import load as _load
 from relay_runtime.channels import ChannelSpec as _Channel
 from relay_runtime.params import ParamSpec as _Param
@@ -79,7 +80,7 @@ def f_1_2_1(st: State, stage: dict[str, Any]) -> None:
     v_total = st.v_total
     v_value = st.v_value
     v_total = (v_total + v_value)
-    v_seen = (v_seen + 1)
+    v_seen = _rt.iadd(v_seen, 1, 'tests/ros2/specs/relay.rssm:61:21')
     stage['v_total'] = v_total
     stage['v_seen'] = v_seen
 
@@ -126,7 +127,7 @@ def f_2_2_1(st: State, stage: dict[str, Any]) -> None:
     v_total = st.v_total
     v_value = st.v_value
     v_total = (v_total + v_value)
-    v_seen = (v_seen + 1)
+    v_seen = _rt.iadd(v_seen, 1, 'tests/ros2/specs/relay.rssm:83:21')
     stage['v_total'] = v_total
     stage['v_seen'] = v_seen
 
@@ -231,11 +232,11 @@ SPEC = _Subsystem(
     ),
     inputs=(
         _Channel('value', 'src.c.value->dst.c.value', '/src/c/value', _msg.Float64Sample, _msg.Ack, M0,
-                 producer_blocking=True, consumer_blocking=True),
+                 _Pairing.BLOCKING_BLOCKING),
     ),
     outputs=(
         _Channel('cmd', 'dst.c.cmd->dst.e.arm.cmd', '/dst/c/cmd', _msg.CommandSample, _msg.Ack, M1,
-                 producer_blocking=True, consumer_blocking=True),
+                 _Pairing.BLOCKING_BLOCKING),
     ),
     initial='gather',
     behaviours={

@@ -15,7 +15,8 @@ from collections.abc import Mapping
 from typing import Any
 
 from relay_interfaces import msg as _msg
-from relay_runtime import values as _rt
+import rssm_core.values as _rt
+from rssm_core.modes import Pairing as _Pairing
 from relay_runtime.bindings import load as _load
 from relay_runtime.channels import ChannelSpec as _Channel
 from relay_runtime.params import ParamSpec as _Param
@@ -66,7 +67,7 @@ def f_1_1_1(st: State, stage: dict[str, Any]) -> None:
     v_acc = st.v_acc
     v_cmd = st.v_cmd
     v_count = st.v_count
-    v_count = (v_count + 1)
+    v_count = _rt.iadd(v_count, 1, 'tests/ros2/specs/relay.rssm:108:22')
     v_acc = (v_acc + (v_cmd['gain'] * _rt.index(v_cmd['target'], 0, 3, True, 'tests/ros2/specs/relay.rssm:109:37')))
     stage['v_count'] = v_count
     stage['v_acc'] = v_acc
@@ -121,7 +122,7 @@ SPEC = _Subsystem(
     ),
     inputs=(
         _Channel('cmd', 'dst.c.cmd->dst.e.arm.cmd', '/dst/c/cmd', _msg.CommandSample, _msg.Ack, M0,
-                 producer_blocking=True, consumer_blocking=True),
+                 _Pairing.BLOCKING_BLOCKING),
     ),
     outputs=(
     ),

@@ -15,7 +15,8 @@ from collections.abc import Mapping
 from typing import Any
 
 from relay_interfaces import msg as _msg
-from relay_runtime import values as _rt
+import rssm_core.values as _rt
+from rssm_core.modes import Pairing as _Pairing
 from relay_runtime.bindings import load as _load
 from relay_runtime.channels import ChannelSpec as _Channel
 from relay_runtime.params import ParamSpec as _Param
@@ -72,7 +73,7 @@ def f_1_1_1(st: State, stage: dict[str, Any]) -> None:
 def f_1_2_1(st: State, stage: dict[str, Any]) -> None:
     # ramp: update memory, tests/ros2/specs/relay.rssm:26
     v_k = st.v_k
-    v_k = (v_k + 1)
+    v_k = _rt.iadd(v_k, 1, 'tests/ros2/specs/relay.rssm:26:30')
     stage['v_k'] = v_k
 
 
@@ -87,14 +88,14 @@ def f_2_1_1(st: State, stage: dict[str, Any]) -> None:
     # fall: update value, tests/ros2/specs/relay.rssm:32
     v_count = st.v_count
     v_k = st.v_k
-    v_value = (k_STOP if (v_k >= (v_count - 1)) else (10.0 - (0.5 * v_k)))
+    v_value = (k_STOP if (v_k >= _rt.isub(v_count, 1, 'tests/ros2/specs/relay.rssm:32:41')) else (10.0 - (0.5 * v_k)))
     stage['v_value'] = v_value
 
 
 def f_2_2_1(st: State, stage: dict[str, Any]) -> None:
     # fall: update memory, tests/ros2/specs/relay.rssm:33
     v_k = st.v_k
-    v_k = (v_k + 1)
+    v_k = _rt.iadd(v_k, 1, 'tests/ros2/specs/relay.rssm:33:30')
     stage['v_k'] = v_k
 
 
@@ -186,7 +187,7 @@ SPEC = _Subsystem(
     ),
     outputs=(
         _Channel('value', 'src.c.value->dst.c.value', '/src/c/value', _msg.Float64Sample, _msg.Ack, M0,
-                 producer_blocking=True, consumer_blocking=True),
+                 _Pairing.BLOCKING_BLOCKING),
     ),
     initial='ramp',
     behaviours={

@@ -15,7 +15,8 @@ from collections.abc import Mapping
 from typing import Any
 
 from tricky_interfaces import msg as _msg
-from tricky_runtime import values as _rt
+import rssm_core.values as _rt
+from rssm_core.modes import Pairing as _Pairing
 from tricky_runtime.bindings import load as _load
 from tricky_runtime.channels import ChannelSpec as _Channel
 from tricky_runtime.params import ParamSpec as _Param
@@ -113,8 +114,8 @@ def f_1_2_1(st: State, stage: dict[str, Any]) -> None:
     v_p = st.v_p
     v_x = st.v_x
     v_q = _rt.div(v_i, 2, 'tests/ros2/specs/tricky.rssm:46:19')
-    v_j = (v_i + 1)
-    v_i = (_rt.mod((v_j + k_N), 4, 'tests/ros2/specs/tricky.rssm:48:17') - 2)
+    v_j = _rt.iadd(v_i, 1, 'tests/ros2/specs/tricky.rssm:47:19')
+    v_i = _rt.isub(_rt.mod(_rt.iadd(v_j, k_N, 'tests/ros2/specs/tricky.rssm:48:17'), 4, 'tests/ros2/specs/tricky.rssm:48:17'), 2, 'tests/ros2/specs/tricky.rssm:48:17')
     v_f = (((v_q + (v_f * k_SCALE)) - (1 if v_o['flag'] else 2)) + v_x)
     v_arr = _rt.aadd(_rt.asub(_rt.aadd(_rt.amul(v_arr, 2.0), _rt.as_np((1, 2, 3))), _rt.amul(_rt.as_np(v_ks), 1)), k_ORIGIN)
     _v1 = _rt.div((-_rt.index(v_arr, 0, 3, True, 'tests/ros2/specs/tricky.rssm:51:26')), v_f, 'tests/ros2/specs/tricky.rssm:51:25')
@@ -125,7 +126,7 @@ def f_1_2_1(st: State, stage: dict[str, Any]) -> None:
     _c5 = _c4['v']
     _i6 = 1
     v_o = _rt.set_field(v_o, 'inner', _rt.set_field(_c4, 'v', _rt.set_item(_c5, _i6, 3, _v3, 'tests/ros2/specs/tricky.rssm:52:11')))
-    _v7 = (((min(v_i, 3) + max((-v_i), 1)) + min(max(v_i, (-1)), 1)) + abs((-v_i)))
+    _v7 = _rt.iadd(_rt.iadd(_rt.iadd(min(v_i, 3), max(_rt.ineg(v_i, 'tests/ros2/specs/tricky.rssm:53:43'), 1), 'tests/ros2/specs/tricky.rssm:53:27'), min(max(v_i, (-1)), 1), 'tests/ros2/specs/tricky.rssm:53:27'), _rt.iabs(_rt.ineg(v_i, 'tests/ros2/specs/tricky.rssm:53:74'), 'tests/ros2/specs/tricky.rssm:53:70'), 'tests/ros2/specs/tricky.rssm:53:27')
     _c8 = v_o['inner']
     _c9 = _c8['k']
     _i10 = 0
@@ -281,11 +282,11 @@ SPEC = _Subsystem(
     ),
     inputs=(
         _Channel('x', 'a.e.arm.x->a.c.x', '/a/e_arm/x', _msg.Float64Sample, _msg.Ack, M0,
-                 producer_blocking=False, consumer_blocking=False),
+                 _Pairing.NONBLOCKING_NONBLOCKING),
     ),
     outputs=(
         _Channel('y', 'a.c.y->a.e.arm.y', '/a/c/y', _msg.OuterSample, _msg.Ack, M1,
-                 producer_blocking=False, consumer_blocking=False),
+                 _Pairing.NONBLOCKING_NONBLOCKING),
     ),
     initial='b',
     behaviours={

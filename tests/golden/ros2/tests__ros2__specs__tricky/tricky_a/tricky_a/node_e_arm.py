@@ -15,7 +15,8 @@ from collections.abc import Mapping
 from typing import Any
 
 from tricky_interfaces import msg as _msg
-from tricky_runtime import values as _rt
+import rssm_core.values as _rt
+from rssm_core.modes import Pairing as _Pairing
 from tricky_runtime.bindings import load as _load
 from tricky_runtime.channels import ChannelSpec as _Channel
 from tricky_runtime.params import ParamSpec as _Param
@@ -120,11 +121,11 @@ SPEC = _Subsystem(
     ),
     inputs=(
         _Channel('y', 'a.c.y->a.e.arm.y', '/a/c/y', _msg.OuterSample, _msg.Ack, M0,
-                 producer_blocking=False, consumer_blocking=False),
+                 _Pairing.NONBLOCKING_NONBLOCKING),
     ),
     outputs=(
         _Channel('x', 'a.e.arm.x->a.c.x', '/a/e_arm/x', _msg.Float64Sample, _msg.Ack, M1,
-                 producer_blocking=False, consumer_blocking=False),
+                 _Pairing.NONBLOCKING_NONBLOCKING),
     ),
     initial='m',
     behaviours={

@@ -8,6 +8,7 @@ driver may take this node's place: it must speak the same topics (see the worksp
 
 from __future__ import annotations
 
+from rssm_core.modes import Pairing as _Pairing
 from wire_interfaces import msg as _msg
 from wire_runtime.channels import ChannelSpec as _Channel
 from wire_runtime.device import DeviceNodeSpec as _Device
@@ -33,7 +34,7 @@ SPEC = _Device(
     ),
     channels_out=(
         _Channel('temperature', 'gadget.R.thermo.temperature->gadget.r.thermo.raw', '/gadget/R_thermo/temperature', _msg.Float64Sample, _msg.Ack, M0,
-                 producer_blocking=False, consumer_blocking=False),
+                 _Pairing.NONBLOCKING_NONBLOCKING),
     ),
     initial={
         'temperature': 0.0,

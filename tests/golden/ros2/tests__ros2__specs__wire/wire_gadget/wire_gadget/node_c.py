@@ -15,7 +15,8 @@ from collections.abc import Mapping
 from typing import Any
 
 from wire_interfaces import msg as _msg
-from wire_runtime import values as _rt
+import rssm_core.values as _rt
+from rssm_core.modes import Pairing as _Pairing
 from wire_runtime.bindings import load as _load
 from wire_runtime.channels import ChannelSpec as _Channel
 from wire_runtime.params import ParamSpec as _Param
@@ -70,7 +71,7 @@ def f_1_1_1(st: State, stage: dict[str, Any]) -> None:
     v_reading = st.v_reading
     v_samples = st.v_samples
     v_average = _rt.call(x_smooth, CV0, 'smooth', 'tests/ros2/specs/wire.rssm:179:24', v_average, v_reading)
-    v_samples = (v_samples + 1)
+    v_samples = _rt.iadd(v_samples, 1, 'tests/ros2/specs/wire.rssm:180:24')
     stage['v_average'] = v_average
     stage['v_samples'] = v_samples
 
@@ -89,7 +90,7 @@ def f_2_1_1(st: State, stage: dict[str, Any]) -> None:
     v_reading = st.v_reading
     v_samples = st.v_samples
     v_average = (_rt.call(x_smooth, CV0, 'smooth', 'tests/ros2/specs/wire.rssm:191:24', v_average, v_reading) - 5.0)
-    v_samples = (v_samples + 1)
+    v_samples = _rt.iadd(v_samples, 1, 'tests/ros2/specs/wire.rssm:192:24')
     stage['v_average'] = v_average
     stage['v_samples'] = v_samples
 
@@ -175,7 +176,7 @@ SPEC = _Subsystem(
     ),
     inputs=(
         _Channel('reading', 'gadget.r.thermo.reading->gadget.c.reading', '/gadget/r_thermo/reading', _msg.Float64Sample, _msg.Ack, M0,
-                 producer_blocking=False, consumer_blocking=False),
+                 _Pairing.NONBLOCKING_NONBLOCKING),
     ),
     outputs=(
     ),

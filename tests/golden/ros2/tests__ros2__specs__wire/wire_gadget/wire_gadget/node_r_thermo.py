@@ -15,7 +15,8 @@ from collections.abc import Mapping
 from typing import Any
 
 from wire_interfaces import msg as _msg
-from wire_runtime import values as _rt
+import rssm_core.values as _rt
+from rssm_core.modes import Pairing as _Pairing
 from wire_runtime.bindings import load as _load
 from wire_runtime.channels import ChannelSpec as _Channel
 from wire_runtime.params import ParamSpec as _Param
@@ -113,11 +114,11 @@ SPEC = _Subsystem(
     ),
     inputs=(
         _Channel('raw', 'gadget.R.thermo.temperature->gadget.r.thermo.raw', '/gadget/R_thermo/temperature', _msg.Float64Sample, _msg.Ack, M0,
-                 producer_blocking=False, consumer_blocking=False),
+                 _Pairing.NONBLOCKING_NONBLOCKING),
     ),
     outputs=(
         _Channel('reading', 'gadget.r.thermo.reading->gadget.c.reading', '/gadget/r_thermo/reading', _msg.Float64Sample, _msg.Ack, M0,
-                 producer_blocking=False, consumer_blocking=False),
+                 _Pairing.NONBLOCKING_NONBLOCKING),
     ),
     initial='pass',
     behaviours={

@@ -15,7 +15,8 @@ from collections.abc import Mapping
 from typing import Any
 
 from wire_interfaces import msg as _msg
-from wire_runtime import values as _rt
+import rssm_core.values as _rt
+from rssm_core.modes import Pairing as _Pairing
 from wire_runtime.bindings import load as _load
 from wire_runtime.channels import ChannelSpec as _Channel
 from wire_runtime.params import ParamSpec as _Param
@@ -67,7 +68,7 @@ def f_1_1_1(st: State, stage: dict[str, Any]) -> None:
 def f_1_2_1(st: State, stage: dict[str, Any]) -> None:
     # count: update memory, tests/ros2/specs/wire.rssm:102
     v_n = st.v_n
-    v_n = (v_n + 1)
+    v_n = _rt.iadd(v_n, 1, 'tests/ros2/specs/wire.rssm:102:30')
     stage['v_n'] = v_n
 
 
@@ -124,7 +125,7 @@ SPEC = _Subsystem(
     ),
     outputs=(
         _Channel('data', 'nb.c.data->nb.e.sink.data', '/nb/c/data', _msg.Int64Sample, _msg.Ack, M0,
-                 producer_blocking=False, consumer_blocking=True),
+                 _Pairing.NONBLOCKING_BLOCKING),
     ),
     initial='count',
     behaviours={

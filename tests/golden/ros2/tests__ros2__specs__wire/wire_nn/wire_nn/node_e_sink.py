@@ -15,7 +15,8 @@ from collections.abc import Mapping
 from typing import Any
 
 from wire_interfaces import msg as _msg
-from wire_runtime import values as _rt
+import rssm_core.values as _rt
+from rssm_core.modes import Pairing as _Pairing
 from wire_runtime.bindings import load as _load
 from wire_runtime.channels import ChannelSpec as _Channel
 from wire_runtime.params import ParamSpec as _Param
@@ -63,7 +64,7 @@ def f_1_1_1(st: State, stage: dict[str, Any]) -> None:
     v_data = st.v_data
     v_taken = st.v_taken
     v_last = v_data
-    v_taken = (v_taken + 1)
+    v_taken = _rt.iadd(v_taken, 1, 'tests/ros2/specs/wire.rssm:156:22')
     stage['v_last'] = v_last
     stage['v_taken'] = v_taken
 
@@ -117,7 +118,7 @@ SPEC = _Subsystem(
     ),
     inputs=(
         _Channel('data', 'nn.c.data->nn.e.sink.data', '/nn/c/data', _msg.Int64Sample, _msg.Ack, M0,
-                 producer_blocking=False, consumer_blocking=False),
+                 _Pairing.NONBLOCKING_NONBLOCKING),
     ),
     outputs=(
     ),

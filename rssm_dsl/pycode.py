@@ -1,29 +1,35 @@
-"""Python source for the DSL's expressions and statements, for the generated ROS 2 nodes.
+"""Python source for the DSL's expressions and statements: the one expression compiler.
 
-It mirrors the interpreter's closure compiler (rssm_dsl.interp.compile_expr) construct by
-construct, so that a node computes exactly what `rssmc simulate` computes: the same static
-types (from the front end's ExprChecker), the same int-to-float widenings at the same
-places, the same value representation (rssm_dsl/ros2/runtime/values.py) and the same run-time
-checks (division by zero, index range, math domain, external operations' results).
+Both executions of a specification run what this module writes: the interpreter
+(rssm_dsl.interp.compile_expr compiles the source once per subsystem and calls it on its
+variables) and the generated ROS 2 nodes (rssm_dsl.ros2.nodecode writes it into the node
+modules). The code calls the semantics core, rssm_core.values (imported as ``_rt``), for
+every operation whose meaning is not plain Python: int arithmetic (64-bit, overflow fails),
+division and remainder (checked for zero), float min/max/clamp (NaN propagates), indexing,
+array arithmetic, external operations (their results checked against the declared type).
+Static types come from the front end's ExprChecker, so every int-to-float widening the
+language allows is a conversion written at the place it happens.
 
 User text never becomes Python syntax: every name of the specification is emitted mangled
 (``v_`` variables, parameters and locals, ``k_`` constants, ``x_`` external operations,
 ``c_`` terminal/error conditions in switch conditions), field names, behaviour names and
 source locations only inside string literals written by ``repr``, numbers by ``repr`` (an
 infinite float as ``math.inf``). Generated helper names start with ``_`` or an upper-case
-letter and so never collide with a mangled name.
+letter and so never collide with a mangled name. Where an operation can fail, the code
+passes a *site*: by default the ``file:line:column`` string literal of the expression; the
+interpreter passes its own reference to the span instead (``PyGen(site=...)``).
 """
 
 from __future__ import annotations
 
 import math
-from collections.abc import Mapping
+from collections.abc import Callable, Mapping
 from dataclasses import dataclass, field
 
 from rssm_dsl.diagnostics import DiagnosticBag
 from rssm_dsl.semantics.model import Extern
 from rssm_dsl.semantics.typecheck import BUILTIN_CONSTS, ExprChecker, Scope, Symbol
-from rssm_dsl.semantics.types import BOOL, FLOAT, INT, ArrayT, RecordT, Scalar, Type
+from rssm_dsl.semantics.types import BOOL, FLOAT, INT, ArrayT, RecordT, Scalar, Type, descriptor
 from rssm_dsl.source import Span
 from rssm_dsl.syntax import ast
 from rssm_dsl.syntax.printer import expr_text
@@ -74,14 +80,9 @@ def tuple_source(items: list[str] | tuple[str, ...]) -> str:
     return "(" + ", ".join(items) + ("," if len(items) == 1 else "") + ")"
 
 
-def descriptor(t: Type) -> str:
-    """The value descriptor of a type (rssm_dsl/ros2/runtime/values.py) as Python source."""
-    if isinstance(t, Scalar):
-        return f"({t.name!r},)"
-    if isinstance(t, ArrayT):
-        return f"('array', {descriptor(t.element)}, {t.size})"
-    fields = tuple_source([f"({n!r}, {descriptor(ft)})" for n, ft in t.fields])
-    return f"('record', {t.name!r}, {fields})"
+def descriptor_source(t: Type) -> str:
+    """The value descriptor of a type (rssm_core.values) as Python source."""
+    return repr(descriptor(t))
 
 
 @dataclass
@@ -92,7 +93,7 @@ class TypeTable:
     converters: dict[str, str] = field(default_factory=dict)   # descriptor name -> name
 
     def desc(self, t: Type) -> str:
-        src = descriptor(t)
+        src = descriptor_source(t)
         if src not in self.descs:
             self.descs[src] = f"T{len(self.descs)}"
         return self.descs[src]
@@ -114,8 +115,10 @@ class PyGen:
     """Generates the Python of one scope's expressions (one subsystem, or the constants)."""
 
     def __init__(self, symbols: Mapping[str, Symbol], externs: Mapping[str, Extern],
-                 types: TypeTable, special: frozenset[str] = frozenset()) -> None:
+                 types: TypeTable, special: frozenset[str] = frozenset(),
+                 site: Callable[[Span], str] = where) -> None:
         self.symbols = dict(symbols)
+        self.site = site
         self.externs = dict(externs)
         self.types = types
         self.special = special
@@ -210,7 +213,7 @@ class PyGen:
         assert isinstance(at, ArrayT)
         arr = self.expr(e.value)
         idx = self.expr(e.index, INT)
-        return f"_rt.index({arr}, {idx}, {at.size}, {at.element == FLOAT}, {where(e.span)})"
+        return f"_rt.index({arr}, {idx}, {at.size}, {at.element == FLOAT}, {self.site(e.span)})"
 
     def _unary(self, e: ast.Unary, t: Type) -> str:
         x = self.expr(e.operand)
@@ -218,6 +221,10 @@ class PyGen:
             return f"(not {x})"
         if isinstance(t, ArrayT):
             return f"_rt.aneg({self._as_np(x, self.type_of(e.operand))})"
+        if t == INT:
+            if isinstance(e.operand, ast.Literal) and isinstance(e.operand.value, int):
+                return f"({-e.operand.value})"    # a negative literal: nothing can overflow
+            return f"_rt.ineg({x}, {self.site(e.span)})"
         return f"(-{x})"
 
     def _binary(self, e: ast.Binary, t: Type) -> str:
@@ -235,13 +242,16 @@ class PyGen:
         if isinstance(t, ArrayT):
             na, nb = self._as_np(a, lt), self._as_np(b, rt)
             if op == "/":
-                return f"_rt.adiv({na}, {nb}, {isinstance(rt, ArrayT)}, {where(e.span)})"
+                return f"_rt.adiv({na}, {nb}, {isinstance(rt, ArrayT)}, {self.site(e.span)})"
             fn = {"+": "aadd", "-": "asub", "*": "amul"}[op]
             return f"_rt.{fn}({na}, {nb})"
         if op in ("+", "-", "*"):
+            if t == INT:
+                fn = {"+": "iadd", "-": "isub", "*": "imul"}[op]
+                return f"_rt.{fn}({a}, {b}, {self.site(e.span)})"
             return f"({a} {op} {b})"
         fn = "div" if op == "/" else "mod"
-        return f"_rt.{fn}({a}, {b}, {where(e.span)})"
+        return f"_rt.{fn}({a}, {b}, {self.site(e.span)})"
 
     def _array(self, e: ast.ArrayLit, t: Type) -> str:
         assert isinstance(t, ArrayT)
@@ -257,24 +267,28 @@ class PyGen:
             args = [self.expr(a, pt) for a, (_, pt) in zip(e.args, ext.params, strict=True)]
             conv = self.types.converter(ext.result)
             rest = "".join(", " + a for a in args)
-            return (f"_rt.call({extern(ext.name)}, {conv}, {ext.name!r}, {where(e.span)}"
+            return (f"_rt.call({extern(ext.name)}, {conv}, {ext.name!r}, {self.site(e.span)}"
                     f"{rest})")
         f = e.function
         if f in MATH1:
             x = self.expr(e.args[0], FLOAT)
-            return f"_rt.math1({MATH1[f]}, {f!r}, {x}, {where(e.span)})"
+            return f"_rt.math1({MATH1[f]}, {f!r}, {x}, {self.site(e.span)})"
         if f == "atan2":
             return f"math.atan2({self.expr(e.args[0], FLOAT)}, {self.expr(e.args[1], FLOAT)})"
         if f in ("abs", "min", "max", "clamp"):
             args = [self.expr(a, t) for a in e.args]
-            if f == "clamp":
-                return f"min(max({args[0]}, {args[1]}), {args[2]})"
-            return f"{f}({', '.join(args)})"
+            if f == "abs":
+                return f"_rt.iabs({args[0]}, {self.site(e.span)})" if t == INT else f"abs({args[0]})"
+            if t == INT:
+                if f == "clamp":
+                    return f"min(max({args[0]}, {args[1]}), {args[2]})"
+                return f"{f}({', '.join(args)})"
+            return f"_rt.f{f}({', '.join(args)})"
         vecs = [self._as_np(self.expr(a), self.type_of(a)) for a in e.args]
         if f == "norm":
             return f"_rt.norm({vecs[0]})"
         if f == "dot":
-            return f"_rt.dot({vecs[0]}, {vecs[1]}, {where(e.span)})"
+            return f"_rt.dot({vecs[0]}, {vecs[1]}, {self.site(e.span)})"
         if f == "cross":
             return f"_rt.cross({vecs[0]}, {vecs[1]})"
         raise AssertionError(f"unknown built-in {f} at {e.span}")
@@ -318,7 +332,7 @@ class PyGen:
             else:
                 at = self.type_of(node.value)
                 assert isinstance(at, ArrayT)
-                steps.append(("index", self.expr(node.index, INT), at.size, where(node.span)))
+                steps.append(("index", self.expr(node.index, INT), at.size, self.site(node.span)))
             node = node.value
         assert isinstance(node, ast.Name)
         root = node.name
