@@ -1,0 +1,189 @@
+"""Mutation check of the semantics: each named mutant is one small change to the one place
+where a rule is defined (rssm_core, the HPN builder, the interpreter's behaviour pattern);
+the non-golden tests must kill every one.
+
+For each mutant the script copies the repository (without .git, .venv, .cache) into a
+temporary folder, applies the change there (the text to replace must occur exactly once),
+and runs the test selection against the copy, stopping at the first failure. It prints a
+table of mutants, the test that killed each and the time it took; any survivor makes the run
+exit 1 (and so does a mutant whose text is no longer found: the list must follow the code).
+
+    python bench/mutants.py                 # every mutant
+    python bench/mutants.py --only mod      # the mutants whose name contains "mod"
+    python bench/mutants.py --list          # the mutants and where they apply
+
+The selection (``--tests``) defaults to the behaviour tests that need no external system
+(golden-file tests excluded: they would kill anything and prove nothing).
+"""
+
+from __future__ import annotations
+
+import argparse
+import os
+import re
+import shutil
+import subprocess
+import sys
+import tempfile
+import time
+from dataclasses import dataclass
+from pathlib import Path
+
+ROOT = Path(__file__).resolve().parent.parent
+DEFAULT_TESTS = ("tests/semantics", "tests/core", "tests/interp", "tests/verify/test_verify.py",
+                 "tests/verify/test_statespace.py", "tests/hpn")
+SELECT = ["-m", "not ros2", "-k", "not golden"]
+
+
+@dataclass(frozen=True)
+class Mutant:
+    name: str
+    what: str
+    path: str
+    old: str
+    new: str
+
+
+MUTANTS = (
+    Mutant("mod-sign-of-dividend", "`%` takes the sign of the dividend (C's fmod)",
+           "rssm_core/values.py",
+           '        raise _fail(where, "remainder by zero")\n    return x % y\n',
+           '        raise _fail(where, "remainder by zero")\n'
+           '    r = math.fmod(x, y)\n    return int(r) if type(x) is int and type(y) is int else r\n'),
+    Mutant("int-division", "`/` of two ints is integer division",
+           "rssm_core/values.py",
+           "        return float(x / y)\n",
+           "        return float(x // y) if type(x) is int and type(y) is int else float(x / y)\n"),
+    Mutant("int-overflow-unchecked", "int addition wraps nothing and fails nothing past 64 bits",
+           "rssm_core/values.py",
+           "    r = x + y\n    return r if INT_MIN <= r <= INT_MAX else int64(r, where)\n",
+           "    return x + y\n"),
+    Mutant("nonblocking-consumer-skips-waiting-data",
+           "a non-blocking consumer may skip its receive while fresh data waits",
+           "rssm_core/modes.py",
+           "            return (*take, Transition(3, Step.NOTHING_NEW, (Slot.IN, Slot.EMPTY),\n"
+           "                                      (Slot.OUT, Slot.EMPTY)))\n",
+           "            return (*take, Transition(3, Step.NOTHING_NEW, (Slot.IN, Slot.EMPTY),\n"
+           "                                      (Slot.OUT, Slot.EMPTY)),\n"
+           "                    Transition(4, Step.NOTHING_NEW, (Slot.IN, Slot.FULL),\n"
+           "                               (Slot.OUT, Slot.FULL)))\n"),
+    Mutant("blocking-producer-does-not-wait",
+           "a blocking producer's send ends before the consumer took the data",
+           "rssm_core/modes.py",
+           "Transition(3, Step.SENT_WAIT, (Slot.OP,), (Slot.WAIT, Slot.FULL))",
+           "Transition(3, Step.SENT_WAIT, (Slot.OP,), (Slot.OUT, Slot.FULL))"),
+    Mutant("new-not-cleared", "new(x) is not cleared once the transition function used it",
+           "rssm_dsl/interp/program.py",
+           "        flags[:] = cleared\n",
+           "        pass\n"),
+    Mutant("sequence-reversed", "a sequential arrangement `a ; b` runs b first (receive order)",
+           "rssm_dsl/hpn/build.py",
+           "                    first_s, prev_e = emit(a.items[0])\n"
+           "                    for item in a.items[1:]:\n",
+           "                    first_s, prev_e = emit(a.items[-1])\n"
+           "                    for item in a.items[-2::-1]:\n"),
+    Mutant("send-before-compute", "the send arrangement runs before the transition function",
+           "rssm_dsl/hpn/build.py",
+           '                   [f_page])\n'
+           '        t1 = self._trans(N.transition(j, v, w, 1), pid, b.span, f"{who} has computed f")\n'
+           '        if snd is not None:\n'
+           '            self._arcs(pid, [f_page], t1, [snd])\n'
+           '            t2 = self._trans(N.transition(j, v, w, 2), pid, b.span, f"{who} has sent")\n'
+           '            self._arcs(pid, [snd], t2, [p2])\n',
+           '                   [snd if snd is not None else f_page])\n'
+           '        t1 = self._trans(N.transition(j, v, w, 1), pid, b.span, f"{who} has computed f")\n'
+           '        if snd is not None:\n'
+           '            self._arcs(pid, [snd], t1, [f_page])\n'
+           '            t2 = self._trans(N.transition(j, v, w, 2), pid, b.span, f"{who} has sent")\n'
+           '            self._arcs(pid, [f_page], t2, [p2])\n'),
+    Mutant("switch-before-terminal",
+           "the next behaviour is chosen from the conditions as they were before the "
+           "terminal and error conditions of the last iteration were evaluated",
+           "rssm_dsl/interp/program.py",
+           "        if s.conds is None:      # a constant-true stop condition: nothing was evaluated\n"
+           "            s.evaluate_conditions()\n"
+           "        s.last_conds = s.conds or {}\n",
+           "        s.last_conds = s.conds or {}\n"
+           "        if s.conds is None:      # a constant-true stop condition: nothing was evaluated\n"
+           "            s.evaluate_conditions()\n"),
+)
+
+_IGNORE = shutil.ignore_patterns(".git", ".venv", ".cache", "__pycache__", "out", "node_modules",
+                                 ".mypy_cache", ".ruff_cache", ".pytest_cache", "*.egg-info")
+
+
+def apply(m: Mutant, root: Path) -> None:
+    path = root / m.path
+    text = path.read_text(encoding="utf-8")
+    count = text.count(m.old)
+    if count != 1:
+        raise LookupError(f"{m.path}: the text of mutant {m.name} occurs {count} times "
+                          "(update bench/mutants.py to follow the code)")
+    path.write_text(text.replace(m.old, m.new), encoding="utf-8")
+
+
+def run_tests(root: Path, tests: list[str], timeout: float) -> tuple[str | None, float]:
+    """The first failing test (None when every test passed) and the seconds it took."""
+    env = dict(os.environ, PYTHONPATH=str(root), PYTHONDONTWRITEBYTECODE="1")
+    cmd = [sys.executable, "-m", "pytest", "-x", "-q", "-p", "no:cacheprovider",
+           "--no-header", "-rf", *SELECT, *tests]
+    start = time.perf_counter()
+    try:
+        done = subprocess.run(cmd, cwd=root, env=env, capture_output=True, text=True,
+                              timeout=timeout, check=False)
+    except subprocess.TimeoutExpired:
+        return "(timed out: counts as killed, the mutant hangs the tests)", timeout
+    took = time.perf_counter() - start
+    if done.returncode == 0:
+        return None, took
+    failed = re.search(r"^(?:FAILED|ERROR) (\S+)", done.stdout, re.MULTILINE)
+    if failed:
+        return failed.group(1), took
+    tail = (done.stdout + done.stderr).strip().splitlines()[-1:] or ["?"]
+    return f"(pytest exit {done.returncode}: {tail[0][:80]})", took
+
+
+def main() -> int:
+    ap = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
+    ap.add_argument("--only", default="", help="run the mutants whose name contains this")
+    ap.add_argument("--tests", nargs="*", default=list(DEFAULT_TESTS))
+    ap.add_argument("--timeout", type=float, default=900.0, help="seconds per mutant")
+    ap.add_argument("--list", action="store_true")
+    args = ap.parse_args()
+    chosen = [m for m in MUTANTS if args.only in m.name]
+    if args.list:
+        for m in chosen:
+            print(f"{m.name:42} {m.path:30} {m.what}")
+        return 0
+    tests = [t for t in args.tests if (ROOT / t.split("::")[0]).exists()]
+    print(f"{len(chosen)} mutants; tests: {' '.join(tests)} ({' '.join(SELECT)})")
+    survivors = 0
+    with tempfile.TemporaryDirectory(prefix="rssm-mutants-") as tmp:
+        base = Path(tmp) / "repo"
+        shutil.copytree(ROOT, base, ignore=_IGNORE)
+        clean, took = run_tests(base, tests, args.timeout)
+        if clean is not None:
+            print(f"the unmutated code fails {clean}: fix that first")
+            return 1
+        print(f"unmutated: all pass in {took:.1f} s\n")
+        print(f"{'mutant':42} {'killed by':70} {'s':>6}")
+        for m in chosen:
+            work = Path(tmp) / m.name
+            shutil.copytree(base, work)
+            try:
+                apply(m, work)
+            except LookupError as e:
+                print(f"{m.name:42} {'NOT APPLIED: ' + str(e)}")
+                survivors += 1
+                continue
+            killer, took = run_tests(work, tests, args.timeout)
+            shutil.rmtree(work, ignore_errors=True)
+            if killer is None:
+                survivors += 1
+            print(f"{m.name:42} {killer or 'SURVIVED':70} {took:6.1f}", flush=True)
+    print(f"\n{len(chosen) - survivors} of {len(chosen)} mutants killed")
+    return 1 if survivors else 0
+
+
+if __name__ == "__main__":
+    sys.exit(main())
