@@ -42,12 +42,13 @@ from rssm_dsl.interp.compile_expr import ExprCompiler, check_signature
 from rssm_dsl.interp.device import Device as DeviceImpl
 from rssm_dsl.interp.device import DeviceConfigError, DeviceSpec
 from rssm_dsl.interp.errors import EvalError, SetupError
+from rssm_dsl.interp.initial import InitialValues
 from rssm_dsl.interp.state import BehaviourState, DeviceState, SubsystemState
 from rssm_dsl.interp.trace import TraceWriter
-from rssm_dsl.interp.values import ValueTypeError, converter, default_value, to_json
+from rssm_dsl.interp.values import ValueTypeError, converter, to_json
 from rssm_dsl.pipeline import Compilation
-from rssm_dsl.semantics.model import Device, Extern, Subsystem, System, Variable
-from rssm_dsl.semantics.typecheck import Symbol
+from rssm_dsl.semantics.model import Device, Extern, Subsystem, System
+from rssm_dsl.semantics.typecheck import Symbol, owner_symbols
 from rssm_dsl.semantics.types import BOOL
 from rssm_dsl.source import Span
 
@@ -130,8 +131,7 @@ class _Builder:
         self.config = config
         self.diags: list[Diagnostic] = []
         self.bound: dict[str, Callable[..., Any] | None] = {}
-        self.const_symbols: dict[str, Symbol] = {}
-        self.consts: dict[str, Any] = {}
+        self.initial = InitialValues(self.system)
         self.clock: SimClock | WallClock = WallClock() if config.wall_clock else SimClock()
         self.rt: Runtime | None = None
         self.arcs_in: dict[str, set[str]] = defaultdict(set)
@@ -167,46 +167,13 @@ class _Builder:
         self.bound[ext.binding] = fn
         return fn
 
-    # ------------------------------------------------------------------ values
-    def _constants(self) -> None:
-        for c in self.system.consts:
-            comp = ExprCompiler(self.const_symbols, {}, self.consts)
-            self.consts[c.name] = comp.expr(c.value, c.type)({})
-            self.const_symbols[c.name] = Symbol("const", c.type, c.span)
-
-    def _initial(self, params: tuple[Variable, ...], memory: tuple[Variable, ...],
-                 buffers: tuple[tuple[str, Any, Any], ...], span: Span) -> dict[str, Any]:
-        """Evaluate parameters (in order), then memory and buffer initial values."""
-        env: dict[str, Any] = {}
-        symbols = dict(self.const_symbols)
-        try:
-            for p in params:
-                assert p.init is not None
-                env[p.name] = ExprCompiler(symbols, {}, self.consts).expr(p.init, p.type)(env)
-                symbols[p.name] = Symbol("param", p.type, p.span)
-            for name, t, init in ((m.name, m.type, m.init) for m in memory):
-                env[name] = (ExprCompiler(symbols, {}, self.consts).expr(init, t)(env)
-                             if init is not None else default_value(t))
-            for name, t, init in buffers:
-                env[name] = (ExprCompiler(symbols, {}, self.consts).expr(init, t)(env)
-                             if init is not None else default_value(t))
-        except EvalError as e:
-            self.diags.append(e.diagnostic())
-        return env
-
     # ------------------------------------------------------------------ subsystems
     def _subsystem(self, sub: Subsystem) -> tuple[SubsystemState, ExprCompiler]:
-        buffers = tuple((b.name, b.type, b.init) for b in (*sub.inputs, *sub.outputs))
-        env = self._initial(sub.params, sub.memory, buffers, sub.span)
-        symbols = dict(self.const_symbols)
-        for v in sub.params:
-            symbols[v.name] = Symbol("param", v.type, v.span)
-        for v in sub.memory:
-            symbols[v.name] = Symbol("memory", v.type, v.span)
-        for b in (*sub.inputs, *sub.outputs):
-            symbols[b.name] = Symbol(b.direction.value, b.type, b.span)
+        env = self.initial.env(sub)
+        symbols = owner_symbols(self.initial.const_symbols, sub.params, sub.memory,
+                                (*sub.inputs, *sub.outputs))
         externs = {e.name: e for e in self.system.externs}
-        compiler = ExprCompiler(symbols, externs, self.consts, self._resolve_extern)
+        compiler = ExprCompiler(symbols, externs, self.initial.consts, self._resolve_extern)
         behaviours: dict[str, BehaviourState] = {}
         for beh in sub.behaviours:
             conds = [(c.name, c.kind, compiler.expr(c.expr)) for c in beh.conditions]
@@ -216,8 +183,7 @@ class _Builder:
         return state, compiler
 
     def _device(self, d: Device) -> DeviceState | None:
-        buffers = tuple((b.name, b.type, b.init) for b in (*d.inputs, *d.outputs))
-        env = self._initial(d.params, (), buffers, d.span)
+        env = self.initial.env(d)
         ticker = Ticker(d.id, d.frequency) if d.frequency else None
         binding = _chosen(self.config.devices, d.id) or d.binding
         if binding is None:
@@ -236,7 +202,7 @@ class _Builder:
         spec = DeviceSpec(
             id=d.id, name=d.name, device_type=d.device_type, kind=d.kind, frequency=d.frequency,
             inputs={b.name: b.type for b in d.inputs}, outputs={b.name: b.type for b in d.outputs},
-            initial={n: env[n] for n, _, _ in buffers if n in env},
+            initial={b.name: env[b.name] for b in (*d.inputs, *d.outputs) if b.name in env},
             params={p.name: env[p.name] for p in d.params if p.name in env},
             options={k: v for pattern, opts in self.config.device_options.items()
                      if fnmatchcase(d.id, pattern) for k, v in opts.items()},
@@ -266,7 +232,7 @@ class _Builder:
 
     # ------------------------------------------------------------------ build
     def build(self) -> Runtime:
-        self._constants()
+        self.diags += self.initial.diagnostics
         subs: dict[str, SubsystemState] = {}
         compilers: dict[str, ExprCompiler] = {}
         for sub in self.system.subsystems():

@@ -28,9 +28,9 @@ from jinja2 import Environment, PackageLoader, StrictUndefined
 
 from rssm_dsl.diagnostics import Diagnostic
 from rssm_dsl.emit.write import write_outputs
+from rssm_dsl.interp.initial import InitialValues
 from rssm_dsl.pipeline import Compilation
 from rssm_dsl.pycode import comment, tuple_source
-from rssm_dsl.ros2.evaluate import SpecValues
 from rssm_dsl.ros2.names import NameChecker
 from rssm_dsl.ros2.viewmodel import RUNTIME_MODULES, Options, WorkspaceView, build_view
 from rssm_dsl.syntax import ast
@@ -84,7 +84,7 @@ def generate(comp: Compilation, options: Options | None = None) -> Workspace | l
     problems = NameChecker().check(system, _record_spans(comp))
     if problems:
         return problems
-    values = SpecValues(system)
+    values = InitialValues(system)
     if values.diagnostics:
         return values.diagnostics
     bindings = {d.id: d.binding for d in system.devices() if d.binding is not None}

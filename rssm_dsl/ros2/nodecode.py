@@ -42,7 +42,7 @@ from rssm_dsl.semantics.model import (
     System,
     Variable,
 )
-from rssm_dsl.semantics.typecheck import Symbol
+from rssm_dsl.semantics.typecheck import Symbol, owner_symbols
 from rssm_dsl.semantics.types import BOOL, Type
 from rssm_dsl.syntax.printer import expr_text
 
@@ -217,14 +217,8 @@ class SubsystemCode:
         self.externs: set[str] = set()
         self.functions: list[tuple[str, ...]] = []
         self.function_names: set[str] = set()
-        symbols = {c.name: Symbol("const", c.type, c.span) for c in ctx.system.consts}
-        for v in sub.params:
-            symbols[v.name] = Symbol("param", v.type, v.span)
-        for v in sub.memory:
-            symbols[v.name] = Symbol("memory", v.type, v.span)
-        for b in (*sub.inputs, *sub.outputs):
-            symbols[b.name] = Symbol(b.direction.value, b.type, b.span)
-        self.symbols = symbols
+        consts = {c.name: Symbol("const", c.type, c.span) for c in ctx.system.consts}
+        self.symbols = owner_symbols(consts, sub.params, sub.memory, (*sub.inputs, *sub.outputs))
 
     def gen(self, special: frozenset[str] = frozenset()) -> PyGen:
         return PyGen(self.symbols, self.ctx.externs, self.types, special)

@@ -12,7 +12,7 @@ from typing import Any
 
 import numpy as np
 
-from rssm_dsl.ros2.evaluate import SpecValues
+from rssm_dsl.interp.initial import InitialValues
 from rssm_dsl.ros2.msgtypes import MessageTypes, MsgView
 from rssm_dsl.ros2.nodecode import (
     ChannelView,
@@ -167,7 +167,7 @@ def _python_package(name: str, description: str, depends: tuple[str, ...],
         ((f"share/{name}", ("package.xml",)), *extra_data), scripts)
 
 
-def build_view(system: System, source: str, values: SpecValues, folder: Path,
+def build_view(system: System, source: str, values: InitialValues, folder: Path,
                bindings: dict[str, str], options: Options) -> tuple[WorkspaceView, Shipment]:
     """The workspace of ``system`` and the files it ships from ``folder`` (the
     specification's) or the standard library. ``bindings`` maps each device id that gets a

@@ -22,7 +22,7 @@ from rssm_dsl.semantics.model import (
     Switch,
 )
 from rssm_dsl.semantics.structure import Shell
-from rssm_dsl.semantics.typecheck import ExprChecker, Scope, Symbol, did_you_mean
+from rssm_dsl.semantics.typecheck import ExprChecker, Scope, Symbol, did_you_mean, owner_symbols
 from rssm_dsl.semantics.types import BOOL, Type, assignable
 from rssm_dsl.source import Span
 from rssm_dsl.syntax import ast
@@ -85,13 +85,7 @@ class BehaviourPass:
         self.inputs: tuple[Buffer, ...] = tuple(shell.inputs())
         self.outputs: tuple[Buffer, ...] = tuple(shell.outputs())
         self.input_names = tuple(b.name for b in self.inputs)
-        syms = g.symbols()
-        for v in shell.params:
-            syms[v.name] = Symbol("param", v.type, v.span)
-        for v in shell.memory:
-            syms[v.name] = Symbol("memory", v.type, v.span)
-        for b in shell.buffers:
-            syms[b.name] = Symbol(b.direction.value, b.type, b.span)
+        syms = owner_symbols(g.symbols(), shell.params, shell.memory, shell.buffers)
         # declared with a type that is unknown (already reported): known names, no checks
         self.unresolved: dict[str, str] = {}
         for d in shell.unresolved:
@@ -183,12 +177,12 @@ class BehaviourPass:
         if u is None:
             combos = combinations(n) if n <= MAX_INPUTS else [tuple(True for _ in range(n))]
             cases = tuple(DataCase(i + 1, c, (), bd.span, None) for i, c in enumerate(combos))
-            return PartialFunction(psi, target, cases, bd.span, False)
+            return PartialFunction(psi, target, cases, bd.span)
         for case in u.cases:
             self._body(case.body, target)
         if n > MAX_INPUTS:  # reported once, in run()
-            return PartialFunction(psi, target, (), u.span, True)
-        return PartialFunction(psi, target, self._cases(u), u.span, True)
+            return PartialFunction(psi, target, (), u.span)
+        return PartialFunction(psi, target, self._cases(u), u.span)
 
     def _cases(self, u: ast.UpdateDecl) -> tuple[DataCase, ...]:
         inputs = self.input_names

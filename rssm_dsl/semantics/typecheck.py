@@ -3,8 +3,9 @@
 from __future__ import annotations
 
 import difflib
-from collections.abc import Callable, Iterable
+from collections.abc import Callable, Iterable, Mapping
 from dataclasses import dataclass, field
+from typing import Protocol
 
 from rssm_dsl.diagnostics import DiagnosticBag
 from rssm_dsl.semantics.model import Extern
@@ -45,6 +46,37 @@ class Symbol:
     kind: str   # const | extern | param | memory | input | output | local | condition
     type: Type | None  # None: declared, but its type is unknown (an error was reported)
     span: Span
+
+
+class Declared(Protocol):
+    """A declared variable: a parameter, a memory variable, or (with a direction) a buffer."""
+
+    @property
+    def name(self) -> str: ...
+    @property
+    def type(self) -> Type | None: ...
+    @property
+    def span(self) -> Span: ...
+
+
+class DeclaredBuffer(Declared, Protocol):
+    @property
+    def direction(self) -> ast.Direction: ...
+
+
+def owner_symbols(base: Mapping[str, Symbol], params: Iterable[Declared],
+                  memory: Iterable[Declared], buffers: Iterable[DeclaredBuffer]
+                  ) -> dict[str, Symbol]:
+    """The names the expressions of one subsystem (or device) see: ``base`` (the constants),
+    then its parameters, memory variables and buffers, each shadowing what came before."""
+    symbols = dict(base)
+    for v in params:
+        symbols[v.name] = Symbol("param", v.type, v.span)
+    for v in memory:
+        symbols[v.name] = Symbol("memory", v.type, v.span)
+    for b in buffers:
+        symbols[b.name] = Symbol(b.direction.value, b.type, b.span)
+    return symbols
 
 
 @dataclass

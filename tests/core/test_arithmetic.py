@@ -11,9 +11,9 @@ from typing import Any
 
 import pytest
 
+from rssm_dsl.interp.initial import InitialValues as SpecValues
 from rssm_dsl.pipeline import compile_file
 from rssm_dsl.pycode import var
-from rssm_dsl.ros2.evaluate import SpecValues
 from tests.interp.conftest import compile_text, run, single_control
 from tests.ros2.test_pycode import generated_module, outcome
 

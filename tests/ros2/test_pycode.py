@@ -19,10 +19,10 @@ import rssm_core.values as rt_values
 from rssm_dsl.bindings import resolve
 from rssm_dsl.interp.compile_expr import ExprCompiler
 from rssm_dsl.interp.errors import EvalError
+from rssm_dsl.interp.initial import InitialValues as SpecValues
 from rssm_dsl.interp.values import equal, float_array
 from rssm_dsl.pipeline import compile_file
 from rssm_dsl.pycode import var
-from rssm_dsl.ros2.evaluate import SpecValues
 from rssm_dsl.ros2.msgtypes import MessageTypes
 from rssm_dsl.ros2.nodecode import Context, SubsystemCode
 from rssm_dsl.semantics.model import Subsystem, System
