@@ -24,7 +24,7 @@ import keyword
 import re
 
 from rssm_dsl.diagnostics import Diagnostic
-from rssm_dsl.semantics.model import System
+from rssm_dsl.semantics.model import Agent, Device, Subsystem, System
 from rssm_dsl.semantics.types import ArrayT, RecordT, Type
 from rssm_dsl.source import Span
 
@@ -106,38 +106,11 @@ class NameChecker:
                        "starting with a letter")
         packages: dict[str, str] = {}
         for agent in system.agents:
-            self.token(agent.name, "agent", agent.span)
-            pkg = f"{prefix}_{agent.name.lower()}"
-            if agent.name.lower() in RESERVED_PACKAGES:
-                self.error(f"agent '{agent.name}' would be package '{pkg}', which the "
-                           "generator uses for itself", agent.span, "rename the agent")
-            elif not package_ok(pkg):
-                self.error(f"agent '{agent.name}' cannot become ROS 2 package '{pkg}'",
-                           agent.span, "package names are lower-case letters, digits and "
-                           "single underscores")
-            elif pkg in packages:
-                self.error(f"agents '{packages[pkg]}' and '{agent.name}' both become package "
-                           f"'{pkg}'", agent.span, "ROS package names are lower case; rename "
-                           "one of the agents")
-            packages[pkg] = agent.name
+            self._agent(agent, prefix, packages)
             for sub in agent.subsystems:
-                self.token(sub.name, "subsystem", sub.span)
-                for v in (*sub.params, *sub.memory):
-                    self.ident(v.name, "name", v.span)
-                for b in (*sub.inputs, *sub.outputs):
-                    self.token(b.name, "buffer", b.span)
-                for beh in sub.behaviours:
-                    self.ident(beh.name, "behaviour", beh.span)
-                    for c in beh.conditions:
-                        self.ident(c.name, "condition", c.span)
+                self._subsystem(sub)
             for dev in agent.devices:
-                self.token(dev.name, "device", dev.span)
-                for b in (*dev.inputs, *dev.outputs):
-                    self.token(b.name, "buffer", b.span)
-                if dev.binding is not None and not binding_ok(dev.binding):
-                    self.error(f"binding \"{dev.binding}\" of device type {dev.device_type} is "
-                               "not module:Class of Python identifiers", dev.span,
-                               "write it as package.module:Class")
+                self._device(dev)
         for ext in system.externs:
             self.ident(ext.name, "extern", ext.span)
             if not binding_ok(ext.binding):
@@ -148,6 +121,42 @@ class NameChecker:
             self.ident(k.name, "constant", k.span)
         self._records(system, record_spans)
         return self.diagnostics
+
+    def _agent(self, agent: Agent, prefix: str, packages: dict[str, str]) -> None:
+        self.token(agent.name, "agent", agent.span)
+        pkg = f"{prefix}_{agent.name.lower()}"
+        if agent.name.lower() in RESERVED_PACKAGES:
+            self.error(f"agent '{agent.name}' would be package '{pkg}', which the "
+                       "generator uses for itself", agent.span, "rename the agent")
+        elif not package_ok(pkg):
+            self.error(f"agent '{agent.name}' cannot become ROS 2 package '{pkg}'",
+                       agent.span, "package names are lower-case letters, digits and "
+                       "single underscores")
+        elif pkg in packages:
+            self.error(f"agents '{packages[pkg]}' and '{agent.name}' both become package "
+                       f"'{pkg}'", agent.span, "ROS package names are lower case; rename "
+                       "one of the agents")
+        packages[pkg] = agent.name
+
+    def _subsystem(self, sub: Subsystem) -> None:
+        self.token(sub.name, "subsystem", sub.span)
+        for v in (*sub.params, *sub.memory):
+            self.ident(v.name, "name", v.span)
+        for b in (*sub.inputs, *sub.outputs):
+            self.token(b.name, "buffer", b.span)
+        for beh in sub.behaviours:
+            self.ident(beh.name, "behaviour", beh.span)
+            for c in beh.conditions:
+                self.ident(c.name, "condition", c.span)
+
+    def _device(self, dev: Device) -> None:
+        self.token(dev.name, "device", dev.span)
+        for b in (*dev.inputs, *dev.outputs):
+            self.token(b.name, "buffer", b.span)
+        if dev.binding is not None and not binding_ok(dev.binding):
+            self.error(f"binding \"{dev.binding}\" of device type {dev.device_type} is "
+                       "not module:Class of Python identifiers", dev.span,
+                       "write it as package.module:Class")
 
     def _records(self, system: System, spans: dict[str, Span]) -> None:
         seen: dict[str, str] = {}
