@@ -89,7 +89,8 @@ def generate(comp: Compilation, options: Options | None = None) -> Workspace | l
         return values.diagnostics
     bindings = {d.id: d.binding for d in system.devices() if d.binding is not None}
     source = comp.path.name
-    view, shipment = build_view(system, source, values, comp.path.resolve().parent,
+    assert comp.hpn is not None
+    view, shipment = build_view(system, comp.hpn, source, values, comp.path.resolve().parent,
                                 bindings, options or Options())
     files = _render(view)
     warnings = tuple(

@@ -14,6 +14,8 @@ from typing import Any
 import numpy as np
 
 from rssm_core.modes import pairing
+from rssm_dsl.hpn.ir import HPN, PageKind
+from rssm_dsl.hpn.pattern import Compute, Increment, Receive, Send, iteration
 from rssm_dsl.pycode import (
     PyGen,
     TypeTable,
@@ -153,9 +155,7 @@ def literal(value: Any) -> str:
     return "{" + ", ".join(f"{k!r}: {literal(v)}" for k, v in value.items()) + "}"
 
 
-def arrangement(arr: Arrangement | None) -> str:
-    if arr is None:
-        return "None"
+def arrangement(arr: Arrangement) -> str:
     if isinstance(arr, ArrLeaf):
         return f"('buf', {arr.buffer!r})"
     kind = "par" if isinstance(arr, ArrPar) else "seq"
@@ -169,9 +169,12 @@ def mask_of(case: DataCase) -> int:
 class Context:
     """What every node of the system shares: constants, externs, message types, owners."""
 
-    def __init__(self, system: System, msgs: MessageTypes,
+    def __init__(self, system: System, hpn: HPN, msgs: MessageTypes,
                  values: Callable[[str, Variable], Any]) -> None:
         self.system = system
+        self.hpn = hpn
+        self.behaviour_pages = {(p.owner, p.behaviour): p for p in hpn.pages.values()
+                                if p.kind is PageKind.BEHAVIOUR}
         self.msgs = msgs
         self.values = values            # (owner id, variable) -> its value (params, inits)
         self.externs: dict[str, Extern] = {e.name: e for e in system.externs}
@@ -340,13 +343,7 @@ class SubsystemCode:
             f"def iterate_{b}(r: _Runner) -> _Iteration:",
             f"{INDENT}# {comment(f'one iteration of behaviour {beh.name}, {page}')}",
             f"{INDENT}st = r.state",
-            f"{INDENT}mask = r.begin()  # new(x) of the inputs, frozen for the transition function",
-            f"{INDENT}stage: dict[str, Any] = {{}}",
-            *calls,
-            f"{INDENT}r.commit(stage)  # memory and outputs of i + 1; new(x) cleared",
-            f"{INDENT}yield from r.send({arrangement(beh.send)})",
-            f"{INDENT}r.increment()  # i := i + 1",
-            f"{INDENT}yield from r.receive({arrangement(beh.receive)})",
+            *self._steps(beh, calls),
             f"{INDENT}return r.conditions(CONDITIONS_{b})",
         ]
         targets = tuple_source([repr(pf.target) for pf in beh.functions])
@@ -355,6 +352,26 @@ class SubsystemCode:
                 f"{bool(beh.errors)})")
         return BehaviourView(beh.name, page, tuple(tables), tuple(iterate),
                              tuple(self._switch(b, beh)), spec)
+
+    def _steps(self, beh: Behaviour, calls: list[str]) -> list[str]:
+        """The lines of one iteration, in the order the behaviour page's net runs its steps
+        (rssm_dsl.hpn.pattern)."""
+        lines: list[str] = []
+        for step in iteration(self.ctx.hpn, self.ctx.behaviour_pages[self.sub.id, beh.name]):
+            match step:
+                case Compute():
+                    lines += [f"{INDENT}mask = r.begin()  # new(x) of the inputs, frozen for "
+                              "the transition function",
+                              f"{INDENT}stage: dict[str, Any] = {{}}", *calls,
+                              f"{INDENT}r.commit(stage)  # memory and outputs of i + 1; "
+                              "new(x) cleared"]
+                case Send():
+                    lines.append(f"{INDENT}yield from r.send({arrangement(step.arrangement)})")
+                case Increment():
+                    lines.append(f"{INDENT}r.increment()  # i := i + 1")
+                case Receive():
+                    lines.append(f"{INDENT}yield from r.receive({arrangement(step.arrangement)})")
+        return lines
 
     def _params(self, owner: str, params: tuple[Variable, ...]) -> tuple[ParamView, ...]:
         return tuple(ParamView(p.name, self.types.desc(p.type),

@@ -12,6 +12,7 @@ from typing import Any
 
 import numpy as np
 
+from rssm_dsl.hpn.ir import HPN
 from rssm_dsl.interp.initial import InitialValues
 from rssm_dsl.ros2.msgtypes import MessageTypes, MsgView
 from rssm_dsl.ros2.nodecode import (
@@ -167,7 +168,7 @@ def _python_package(name: str, description: str, depends: tuple[str, ...],
         ((f"share/{name}", ("package.xml",)), *extra_data), scripts)
 
 
-def build_view(system: System, source: str, values: InitialValues, folder: Path,
+def build_view(system: System, hpn: HPN, source: str, values: InitialValues, folder: Path,
                bindings: dict[str, str], options: Options) -> tuple[WorkspaceView, Shipment]:
     """The workspace of ``system`` and the files it ships from ``folder`` (the
     specification's) or the standard library. ``bindings`` maps each device id that gets a
@@ -176,7 +177,7 @@ def build_view(system: System, source: str, values: InitialValues, folder: Path,
     interfaces = f"{prefix}_interfaces"
     runtime = f"{prefix}_runtime"
     msgs = MessageTypes()
-    ctx = Context(system, msgs, lambda owner, p: values.param(owner, p))
+    ctx = Context(system, hpn, msgs, lambda owner, p: values.param(owner, p))
     agents: list[AgentView] = []
     for agent in system.agents:
         package = f"{prefix}_{agent.name.lower()}"

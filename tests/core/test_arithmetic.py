@@ -98,7 +98,8 @@ def generated_node(path: Path) -> tuple[str, Any]:
     agent = system.agents[0]
     sub = agent.subsystems[0]
     values = SpecValues(system)
-    ns, _ = generated_module(system, sub, agent.name, agent.designator, values, path.parent)
+    assert comp.hpn is not None
+    ns, _ = generated_module(system, comp.hpn, sub, agent.name, agent.designator, values, path.parent)
     st = ns["State"]()
     for name, value in INITIAL.items():
         setattr(st, var(name), value)

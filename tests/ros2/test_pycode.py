@@ -17,6 +17,7 @@ import pytest
 
 import rssm_core.values as rt_values
 from rssm_dsl.bindings import resolve
+from rssm_dsl.hpn.ir import HPN
 from rssm_dsl.interp.compile_expr import ExprCompiler
 from rssm_dsl.interp.errors import EvalError
 from rssm_dsl.interp.initial import InitialValues as SpecValues
@@ -52,10 +53,10 @@ def random_value(t: Type, rnd: random.Random) -> Any:
     return {n: random_value(ft, rnd) for n, ft in t.fields}
 
 
-def generated_module(system: System, sub: Subsystem, agent: str, j: str,
+def generated_module(system: System, hpn: HPN, sub: Subsystem, agent: str, j: str,
                      values: SpecValues, base: Path) -> tuple[dict[str, Any], Any]:
     """Execute the generated pieces of one node (everything but the ROS parts)."""
-    ctx = Context(system, MessageTypes(), values.param)
+    ctx = Context(system, hpn, MessageTypes(), values.param)
     view = SubsystemCode(ctx, sub, agent, j).build("pkg")
     lines = [*view.types, *view.converters, *view.consts,
              "class State:", f"    __slots__ = {tuple(view.slots)!r}"]
@@ -128,7 +129,8 @@ def test_generated_code_computes_what_the_interpreter_computes(
     checked = 0
     for agent in system.agents:
         for sub in agent.subsystems:
-            ns, _ = generated_module(system, sub, agent.name, agent.designator, values,
+            assert comp.hpn is not None
+            ns, _ = generated_module(system, comp.hpn, sub, agent.name, agent.designator, values,
                                         spec.parent)
             comp_i = interpreter(system, sub, values, spec.parent)
             variables = [(v.name, v.type) for v in (*sub.params, *sub.memory)] + [

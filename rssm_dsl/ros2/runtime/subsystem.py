@@ -1,7 +1,9 @@
 """The run loop of a subsystem node: the paper's behaviour pattern on ROS 2.
 
 The generated node module describes its subsystem (:class:`SubsystemSpec`): the state, one
-*iteration function* per behaviour, which the generator writes as the fixed pattern
+*iteration function* per behaviour, which the generator writes in the order of the steps of
+the behaviour's page in the HPN (rssm_dsl.hpn.pattern; a send or receive line is left out
+when the behaviour has no such arrangement):
 
     mask = r.begin()                      # new(x) of every input, frozen for P^f
     r.partial(psi, CASES[mask], st, stage)  # each partial function from the pre-state
@@ -26,21 +28,21 @@ initial condition of any next behaviour held when a behaviour ended.
 from __future__ import annotations
 
 import contextlib
-import json
 import os
 import sys
 import time
 from collections.abc import Callable, Generator, Iterator, Mapping
 from dataclasses import dataclass
 from pathlib import Path
-from typing import IO, Any
+from typing import Any
 
 import rclpy
 from rclpy.executors import ExternalShutdownException, SingleThreadedExecutor
 from rclpy.node import Node
 from rclpy.qos import DurabilityPolicy, HistoryPolicy, QoSProfile, ReliabilityPolicy
 
-from rssm_core.values import OperationError, to_json
+from rssm_core.trace import SOURCE_NODE, TraceWriter, start_event
+from rssm_core.values import OperationError
 
 from .channels import ChannelSpec
 from .loop import WAIT_SLICE, Arrangement, Loop
@@ -87,22 +89,21 @@ class SubsystemSpec:
 
 
 class Trace:
-    """JSON lines of what the node did (parameter rssm.trace_file or $RSSM_TRACE_DIR)."""
+    """JSON lines of what the node did (parameter rssm.trace_file or $RSSM_TRACE_DIR), in the
+    trace format of :mod:`rssm_core.trace` (source ``"node"``: a header line, then the events),
+    written by the core writer, flushed every half second while events come. ``file`` is the
+    writer, None when the node writes no trace."""
 
     def __init__(self, path: Path | None) -> None:
-        self.file: IO[str] | None = None
-        self.flushed = time.monotonic()
+        self.file: TraceWriter | None = None
         if path is not None:
             path.parent.mkdir(parents=True, exist_ok=True)
-            self.file = path.open("w", encoding="utf-8")
+            self.file = TraceWriter(path, flush_every=0.5)
+            self.file.emit(start_event(SOURCE_NODE))
 
     def emit(self, event: dict[str, Any]) -> None:
         if self.file is not None:
-            self.file.write(json.dumps(event, separators=(",", ":"), default=to_json) + "\n")
-            now = time.monotonic()
-            if now - self.flushed >= 0.5:
-                self.file.flush()
-                self.flushed = now
+            self.file.emit(event)
 
     def close(self) -> None:
         if self.file is not None:
@@ -176,9 +177,8 @@ class Runner(Loop):
         for k in range(len(self.new)):
             self.new[k] = False
 
-    def send(self, arrangement: Arrangement | None) -> Iterator[None]:
-        if arrangement is not None:
-            yield from self.arranged(arrangement, self._send_one)
+    def send(self, arrangement: Arrangement) -> Iterator[None]:
+        yield from self.arranged(arrangement, self._send_one)
 
     def _send_one(self, buffer: str) -> Iterator[None]:
         box = self.outboxes[buffer]
@@ -190,9 +190,8 @@ class Runner(Loop):
         assert self.behaviour is not None
         self.counts[self.behaviour] += 1
 
-    def receive(self, arrangement: Arrangement | None) -> Iterator[None]:
-        if arrangement is not None:
-            yield from self.arranged(arrangement, self._receive_one)
+    def receive(self, arrangement: Arrangement) -> Iterator[None]:
+        yield from self.arranged(arrangement, self._receive_one)
 
     def _receive_one(self, buffer: str) -> Iterator[None]:
         taken, value = yield from self.take(buffer)
