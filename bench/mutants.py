@@ -96,6 +96,11 @@ MUTANTS = (
            '            self._arcs(pid, [snd], t1, [f_page])\n'
            '            t2 = self._trans(N.transition(j, v, w, 2), pid, b.span, f"{who} has sent")\n'
            '            self._arcs(pid, [f_page], t2, [p2])\n'),
+    Mutant("overlapping-switches-by-chance",
+           "when two switch conditions hold, any may be taken (not the first declared)",
+           "rssm_dsl/interp/program.py",
+           "            rt.guards[i] = (lambda: own() and not any(g() for g in earlier)) if earlier else own\n",
+           "            rt.guards[i] = own\n"),
     Mutant("switch-before-terminal",
            "the next behaviour is chosen from the conditions as they were before the "
            "terminal and error conditions of the last iteration were evaluated",
@@ -136,7 +141,7 @@ def run_tests(root: Path, tests: list[str], timeout: float) -> tuple[str | None,
     took = time.perf_counter() - start
     if done.returncode == 0:
         return None, took
-    failed = re.search(r"^(?:FAILED|ERROR) (\S+)", done.stdout, re.MULTILINE)
+    failed = re.search(r"^(?:FAILED|ERROR) (.+?)(?: - |$)", done.stdout, re.MULTILINE)
     if failed:
         return failed.group(1), took
     tail = (done.stdout + done.stderr).strip().splitlines()[-1:] or ["?"]
@@ -166,7 +171,7 @@ def main() -> int:
             print(f"the unmutated code fails {clean}: fix that first")
             return 1
         print(f"unmutated: all pass in {took:.1f} s\n")
-        print(f"{'mutant':42} {'killed by':70} {'s':>6}")
+        print(f"{'mutant':42} {'killed by':90} {'s':>6}")
         for m in chosen:
             work = Path(tmp) / m.name
             shutil.copytree(base, work)
@@ -180,7 +185,7 @@ def main() -> int:
             shutil.rmtree(work, ignore_errors=True)
             if killer is None:
                 survivors += 1
-            print(f"{m.name:42} {killer or 'SURVIVED':70} {took:6.1f}", flush=True)
+            print(f"{m.name:42} {(killer or 'SURVIVED')[:90]:90} {took:6.1f}", flush=True)
     print(f"\n{len(chosen) - survivors} of {len(chosen)} mutants killed")
     return 1 if survivors else 0
 

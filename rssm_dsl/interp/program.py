@@ -418,13 +418,15 @@ class _Builder:
             env = s.vars
             return lambda: bool(fn(env))
 
+        # the first switch (in the order sub.switches_from gives) whose condition holds
+        order = sub.switches_from(sw.source)
+        earlier = [guard_of(x.condition) for x in order[:order.index(sw)]
+                   if x.condition is not None]
         if sw.condition is not None:
-            rt.guards[i] = guard_of(sw.condition)
-            return
-        others = [guard_of(x.condition) for x in sub.switches
-                  if x.source == sw.source and x.condition is not None]
-        if others:
-            rt.guards[i] = lambda: not any(g() for g in others)
+            own = guard_of(sw.condition)
+            rt.guards[i] = (lambda: own() and not any(g() for g in earlier)) if earlier else own
+        elif earlier:
+            rt.guards[i] = lambda: not any(g() for g in earlier)
 
 
 def _getter(s: SubsystemState, name: str) -> Callable[[], Any]:

@@ -308,8 +308,7 @@ class SubsystemCode:
 
     def _switch(self, b: int, beh: Behaviour) -> list[str]:
         names = frozenset(c.name for c in beh.conditions)
-        switches = sorted((s for s in self.sub.switches if s.source == beh.name),
-                          key=lambda s: (s.otherwise or s.condition is None, s.index))
+        switches = self.sub.switches_from(beh.name)
         body: list[str] = []
         gens: list[PyGen] = []
         for sw in switches:

@@ -10,7 +10,7 @@ from __future__ import annotations
 
 from dataclasses import dataclass, field
 
-from rssm_core.modes import pairing
+from rssm_core.modes import Mode, pairing
 from rssm_dsl.semantics.types import Type
 from rssm_dsl.source import Span
 from rssm_dsl.syntax import ast
@@ -53,7 +53,7 @@ class Buffer:
     name: str
     direction: ast.Direction
     type: Type
-    mode: ast.Mode
+    mode: Mode
     init: ast.Expr | None
     span: Span
     peer: str | None = None   # qualified id of the peer, once paired
@@ -103,7 +103,6 @@ class PartialFunction:
     target: str                       # output buffer name, or "memory"
     cases: tuple[DataCase, ...]
     span: Span
-    declared: bool                    # False: not written by the user (void)
 
 
 @dataclass(frozen=True)
@@ -191,6 +190,13 @@ class Subsystem:
 
     def behaviour(self, name: str) -> Behaviour:
         return next(b for b in self.behaviours if b.name == name)
+
+    def switches_from(self, behaviour: str) -> tuple[Switch, ...]:
+        """The switches leaving ``behaviour`` in the order they are tried when it ends: the
+        `when` switches as declared, `otherwise` last. The first whose condition holds is
+        taken (the rule of every backend; the compiler warns, W604, when two can hold)."""
+        return tuple(sorted((s for s in self.switches if s.source == behaviour),
+                            key=lambda s: (s.otherwise or s.condition is None, s.index)))
 
 
 @dataclass(frozen=True)
