@@ -437,36 +437,23 @@ def _getter(s: SubsystemState, name: str) -> Callable[[], Any]:
 
 
 def _freeze_new(s: SubsystemState) -> Effect:
-    """new(x) of every input, as the bit mask the data cases are indexed by."""
-    flags = s.new_flags
-    n = len(flags)
-    if n == 0:
-        return lambda: None
-    if n == 1:
-        def freeze1() -> None:
-            s.new_mask = 1 if flags[0] else 0
-        return freeze1
-    if n == 2:
-        def freeze2() -> None:
-            s.new_mask = (1 if flags[0] else 0) | (2 if flags[1] else 0)
-        return freeze2
-    weights = [1 << k for k in range(n)]
+    """new(x) of every input, frozen for the data cases of the transition function."""
+    freeze = s.new.freeze
 
     def freeze_new() -> None:
-        s.new_mask = sum(w for w, v in zip(weights, flags, strict=True) if v)
+        freeze()
     return freeze_new
 
 
 def _commit(s: SubsystemState) -> Effect:
-    stage, variables, flags = s.stage, s.vars, s.new_flags
-    cleared = [False] * len(flags)
+    """The join of P^f: the staged memory and outputs become the state; new(x) is used."""
+    stage, variables, used = s.stage, s.vars, s.new.used
 
     def commit() -> None:
         if stage:
             variables.update(stage)
             stage.clear()
-        flags[:] = cleared
-        s.new_mask = 0
+        used()
     return commit
 
 
@@ -546,14 +533,14 @@ def _receive(rt: Runtime, owner: SubsystemState | DeviceState, buffer: str,
     variables = owner.vars
     sid, name, span = owner.id, fp.name, str(fp.span)
     if isinstance(owner, SubsystemState):
-        flags, k = owner.new_flags, owner.inputs.index(buffer)
+        received, k = owner.new.received, owner.inputs.index(buffer)
 
         def receive() -> None:
             value = ch.value                     # ChannelState.take, inlined
             ch.unread = False
             ch.received += 1
             variables[buffer] = value
-            flags[k] = True
+            received(k)
             if rt.tracer is not None:
                 rt.emit({"event": "receive", "subsystem": sid, "buffer": buffer,
                          "channel": ch.id, "value": to_json(value), "place": name,

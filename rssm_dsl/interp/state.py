@@ -14,6 +14,7 @@ from collections.abc import Callable
 from dataclasses import dataclass, field
 from typing import Any
 
+from rssm_core.iteration import NewFlags, end_conditions
 from rssm_dsl.interp.clock import Ticker
 from rssm_dsl.interp.device import Device as DeviceImpl
 from rssm_dsl.interp.errors import EvalError
@@ -41,8 +42,7 @@ class SubsystemState:
     ticker: Ticker | None
     inputs: tuple[str, ...]
     stage: dict[str, Any] = field(default_factory=dict)
-    new_flags: list[bool] = field(default_factory=list)
-    new_mask: int = 0
+    new: NewFlags = field(default_factory=lambda: NewFlags(0))
     i: int = 0                                   # the discrete time stamp of the paper
     behaviour: str | None = None                 # current behaviour; None before/after
     started: bool = False
@@ -55,7 +55,12 @@ class SubsystemState:
     handled_errors: int = 0
 
     def __post_init__(self) -> None:
-        self.new_flags = [False] * len(self.inputs)
+        self.new = NewFlags(len(self.inputs))
+
+    @property
+    def new_mask(self) -> int:
+        """new(x) of the inputs as frozen for the transition function (bit k: input k)."""
+        return self.new.mask
 
     @property
     def id(self) -> str:
@@ -70,21 +75,14 @@ class SubsystemState:
     def evaluate_conditions(self) -> None:
         assert self.behaviour is not None
         beh = self.behaviours[self.behaviour]
-        values: dict[str, bool] = {}
-        for name, _, pred in beh.conditions:
-            try:
-                values[name] = bool(pred(self.vars))
-            except EvalError as e:
-                if not beh.has_error_condition:
-                    raise
-                self.fail(e)
-                values[name] = False
-        if self.failed is not None:
-            for name, kind, _ in beh.conditions:
-                if kind == "error":
-                    values[name] = True
-        self.conds = values
-        self.stop_value = any(values.values())
+
+        def fail(e: Exception) -> None:
+            if not isinstance(e, EvalError) or not beh.has_error_condition:
+                raise e
+            self.fail(e)
+
+        self.conds = end_conditions(beh.conditions, self.vars, self.failed is not None, fail)
+        self.stop_value = any(self.conds.values())
 
     def fail(self, error: EvalError) -> None:
         """An operation failed; the behaviour's error conditions will hold at its end."""

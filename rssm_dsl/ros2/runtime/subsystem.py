@@ -41,6 +41,7 @@ from rclpy.executors import ExternalShutdownException, SingleThreadedExecutor
 from rclpy.node import Node
 from rclpy.qos import DurabilityPolicy, HistoryPolicy, QoSProfile, ReliabilityPolicy
 
+from rssm_core.iteration import Condition, NewFlags, end_conditions
 from rssm_core.trace import SOURCE_NODE, TraceWriter, start_event
 from rssm_core.values import OperationError
 
@@ -55,7 +56,6 @@ EXIT_OK, EXIT_FAILED, EXIT_SETUP, EXIT_NO_SWITCH = 0, 1, 2, 3
 
 Iteration = Generator[None, None, dict[str, bool]]
 Case = tuple[int, Callable[[Any, dict[str, Any]], None] | None]   # (varpi, function)
-Condition = tuple[str, str, Callable[[Any], bool]]                # (name, kind, predicate)
 
 
 class NoSwitch(Exception):
@@ -128,8 +128,7 @@ class Runner(Loop):
         self.spec, self.rt = spec, rt
         self.state = spec.init(values)
         self.input_names = tuple(c.buffer for c in spec.inputs)
-        self.new = [False] * len(spec.inputs)
-        self.mask = 0
+        self.new = NewFlags(len(spec.inputs))
         self.i = 0
         self.behaviour: str | None = None
         self.counts = {name: 0 for name in spec.behaviours}
@@ -148,11 +147,7 @@ class Runner(Loop):
     # ------------------------------------------------------------------ the pattern
     def begin(self) -> int:
         """Start an iteration: freeze new(x) of the inputs (bit k = input k)."""
-        mask = 0
-        for k, flag in enumerate(self.new):
-            if flag:
-                mask |= 1 << k
-        self.mask = mask
+        mask = self.new.freeze()
         self.cases = []
         self.received = {}
         self.sent = {}
@@ -174,8 +169,7 @@ class Runner(Loop):
         st = self.state
         for name, value in stage.items():
             setattr(st, name, value)
-        for k in range(len(self.new)):
-            self.new[k] = False
+        self.new.used()
 
     def send(self, arrangement: Arrangement) -> Iterator[None]:
         yield from self.arranged(arrangement, self._send_one)
@@ -198,24 +192,13 @@ class Runner(Loop):
         if not taken:
             return
         setattr(self.state, "v_" + buffer, value)
-        self.new[self.input_names.index(buffer)] = True
+        self.new.received(self.input_names.index(buffer))
         if self.trace.file is not None:
             self.received[buffer] = {"seq": self.inboxes[buffer].taken_seq, "value": value}
 
     def conditions(self, table: tuple[Condition, ...]) -> dict[str, bool]:
         """The terminal and error conditions at the end of the iteration."""
-        values: dict[str, bool] = {}
-        for name, _, predicate in table:
-            try:
-                values[name] = bool(predicate(self.state))
-            except Exception as e:
-                self._failed(e)
-                values[name] = False
-        if self.failed is not None:
-            for name, kind, _ in table:
-                if kind == "error":
-                    values[name] = True
-        return values
+        return end_conditions(table, self.state, self.failed is not None, self._failed)
 
     def _failed(self, e: Exception) -> None:
         err = e if isinstance(e, OperationError) else OperationError(
@@ -274,7 +257,7 @@ class Runner(Loop):
         if self.trace.file is not None:
             self.trace.emit({
                 "event": "iteration", "i": self.i, "behaviour": beh.name,
-                "new": [bool(self.mask >> k & 1) for k in range(len(self.new))],
+                "new": self.new.values(),
                 "cases": self.cases, "sent": self.sent, "received": self.received,
                 "conditions": self.conds, "t": round(time.monotonic() - self.started, 6)})
         now = time.monotonic()
@@ -294,7 +277,7 @@ class Runner(Loop):
         msg.behaviours = list(self.counts)
         msg.behaviour_counts = list(self.counts.values())
         msg.inputs = list(self.input_names)
-        msg.new_data = [bool(self.mask >> k & 1) for k in range(len(self.new))]
+        msg.new_data = self.new.values()
         beh = self.spec.behaviours.get(self.behaviour or previous or "")
         msg.partial_functions = list(beh.functions) if beh is not None else []
         msg.data_cases = list(self.cases) if beh is not None else []
