@@ -1,10 +1,19 @@
-"""Compile-time figures (issue 2): generated systems of 1, 10, 100 and 1000 agents.
+"""Compile-time figures (issue 2) and export figures (issue 14), on generated ring systems
+(rssm_dsl.synth.ring_system: about 100 lines of specification per agent).
 
-Prints lines of specification, the time of each phase (load+parse, check, IR) as the best
-of a few runs, time per 1000 lines (linear growth keeps it flat), and peak memory (traced
-in a separate run). Goal: a 100-agent system (about 10,000 lines) compiles in under 1 s.
+Compile: lines of specification, the time of each phase (load+parse, check, IR) as the best
+of a few runs, time per 1000 lines (linear growth keeps it flat), and peak memory (traced in
+a separate run). Goal: a 100-agent system (about 10,000 lines) compiles in under 1 s.
 
-    python bench/compile.py [--sizes 1,10,100,1000] [--repeat 3]
+Exports: the size of the HPN (pages, places, transitions, arcs) and the time of the
+exporters whose cost grows with the net: the flattened PNML (flattening included), the paged
+PNML and the CPN Tools `.cpn` of the unflattened HPN, as `rssmc compile --emit` runs them
+(cyclic collector on), best of a few runs; then milliseconds per agent (flat when linear) and
+the growth from the smallest to the largest size next to the growth of the net. Goal: linear,
+a 100-agent system exported in under 1 s. Before the IR index (issue 14) the paged PNML and
+the CPN export scanned every table once per page: quadratic, 68 s and 65 s at 100 agents.
+
+    python bench/compile.py [--sizes 1,10,100,1000] [--export-sizes 25,50,100] [--repeat 3]
 """
 
 from __future__ import annotations
@@ -13,15 +22,26 @@ import argparse
 import tempfile
 import time
 import tracemalloc
+from collections.abc import Callable
 from pathlib import Path
 
 from rssm_dsl.diagnostics import DiagnosticBag
+from rssm_dsl.emit.cpn import hpn_cpn
+from rssm_dsl.emit.pnml import flat_pnml, paged_pnml
 from rssm_dsl.hpn.build import build_hpn
-from rssm_dsl.pipeline import _no_gc
+from rssm_dsl.hpn.flatten import flatten
+from rssm_dsl.hpn.ir import HPN
+from rssm_dsl.pipeline import _no_gc, compile_file
 from rssm_dsl.semantics.analyze import analyze
 from rssm_dsl.semantics.loader import Loader
 from rssm_dsl.source import Span
 from rssm_dsl.synth import ring_system
+
+EXPORTS: dict[str, Callable[[HPN], str]] = {
+    "pnml": lambda hpn: flat_pnml(flatten(hpn)),
+    "pnml-paged": paged_pnml,
+    "cpn": hpn_cpn,
+}
 
 
 def phases(path: Path) -> tuple[float, float, float]:
@@ -50,26 +70,71 @@ def peak_memory(path: Path) -> float:
     return peak / 1e6
 
 
-def main() -> None:
-    ap = argparse.ArgumentParser()
-    ap.add_argument("--sizes", default="1,10,100,1000")
-    ap.add_argument("--repeat", type=int, default=3)
-    args = ap.parse_args()
-    sizes = [int(s) for s in args.sizes.split(",")]
+def compile_table(sizes: list[int], repeat: int, tmp: Path) -> None:
     phases(Path(__file__).resolve().parent.parent / "examples" / "lwr4_circle.rssm")  # warm up
     print(f"{'agents':>7} {'lines':>8} {'parse s':>8} {'check s':>8} {'IR s':>7} {'total s':>8}"
           f" {'s/1k lines':>10} {'peak MB':>8}")
+    for n in sizes:
+        path = tmp / f"ring{n}.rssm"
+        text = ring_system(n)
+        path.write_text(text)
+        lines = text.count("\n")
+        best = min((phases(path) for _ in range(repeat)), key=sum)
+        total = sum(best)
+        mem = peak_memory(path)
+        print(f"{n:>7} {lines:>8} {best[0]:>8.3f} {best[1]:>8.3f} {best[2]:>7.3f} "
+              f"{total:>8.3f} {1000 * total / lines:>10.4f} {mem:>8.1f}", flush=True)
+
+
+def export_times(hpn: HPN, repeat: int) -> dict[str, float]:
+    out: dict[str, float] = {}
+    for name, export in EXPORTS.items():
+        best = float("inf")
+        for _ in range(repeat):
+            t0 = time.perf_counter()
+            export(hpn)
+            best = min(best, time.perf_counter() - t0)
+        out[name] = best
+    return out
+
+
+def export_table(sizes: list[int], repeat: int, tmp: Path) -> None:
+    print()
+    names = list(EXPORTS)
+    print(f"{'agents':>7} {'pages':>7} {'places':>7} {'trans':>7} {'arcs':>7} "
+          + " ".join(f"{n + ' s':>12}" for n in names) + "  "
+          + " ".join(f"{n + ' ms/agent':>20}" for n in names))
+    rows: list[tuple[int, int, dict[str, float]]] = []
+    for n in sizes:
+        path = tmp / f"ring{n}.rssm"
+        path.write_text(ring_system(n))
+        hpn = compile_file(path).hpn
+        assert hpn is not None
+        size = len(hpn.pages) + len(hpn.places) + len(hpn.transitions) + len(hpn.arcs)
+        times = export_times(hpn, repeat)
+        rows.append((n, size, times))
+        print(f"{n:>7} {len(hpn.pages):>7} {len(hpn.places):>7} {len(hpn.transitions):>7} "
+              f"{len(hpn.arcs):>7} " + " ".join(f"{times[k]:>12.3f}" for k in names) + "  "
+              + " ".join(f"{1000 * times[k] / n:>20.2f}" for k in names), flush=True)
+    if len(rows) > 1:
+        (n0, s0, t0), (n1, s1, t1) = rows[0], rows[-1]
+        print(f"growth {n0} -> {n1} agents: net x{s1 / s0:.2f} (linear export: the same); "
+              + ", ".join(f"{k} x{t1[k] / t0[k]:.2f}" for k in names))
+
+
+def main() -> None:
+    ap = argparse.ArgumentParser()
+    ap.add_argument("--sizes", default="1,10,100,1000", help="agents, compile table ('' skips)")
+    ap.add_argument("--export-sizes", default="25,50,100", help="agents, export table ('' skips)")
+    ap.add_argument("--repeat", type=int, default=3)
+    args = ap.parse_args()
+    sizes = [int(s) for s in args.sizes.split(",") if s]
+    export_sizes = [int(s) for s in args.export_sizes.split(",") if s]
     with tempfile.TemporaryDirectory() as tmp:
-        for n in sizes:
-            path = Path(tmp) / f"ring{n}.rssm"
-            text = ring_system(n)
-            path.write_text(text)
-            lines = text.count("\n")
-            best = min((phases(path) for _ in range(args.repeat)), key=sum)
-            total = sum(best)
-            mem = peak_memory(path)
-            print(f"{n:>7} {lines:>8} {best[0]:>8.3f} {best[1]:>8.3f} {best[2]:>7.3f} "
-                  f"{total:>8.3f} {1000 * total / lines:>10.4f} {mem:>8.1f}")
+        if sizes:
+            compile_table(sizes, args.repeat, Path(tmp))
+        if export_sizes:
+            export_table(export_sizes, args.repeat, Path(tmp))
 
 
 if __name__ == "__main__":

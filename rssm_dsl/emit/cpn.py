@@ -20,15 +20,18 @@ its output place); CPN Tools' is transition-bordered. The encoding:
 - device pages (no parent) and the system page H are the prime pages (`<instances>`).
 
 Names are the IR ids in the paper's notation; XML ids are generated (`ID1`, `ID2`, ...).
-All text goes through ElementTree, which escapes it.
+The document is written as text in one pass over the IR's index (linear in the size of the
+net), byte for byte as ElementTree would write it indented, with its escaping
+(:mod:`rssm_dsl.emit.xmltext`). The substitution transitions' `subst` elements name ids
+given after every page is written; they are filled into slots kept for them.
 """
 
 from __future__ import annotations
 
-import xml.etree.ElementTree as ET
 from dataclasses import dataclass, field
 
-from rssm_dsl.hpn.ir import HPN, Page
+from rssm_dsl.emit.xmltext import Indents, attr, leaf
+from rssm_dsl.hpn.ir import HPN, Arc, HpnIndex, Page, Transition
 
 UNIT = "UNIT"
 TOKEN = "()"
@@ -36,6 +39,16 @@ ONE = "1`()"
 TOOL = {"tool": "CPN Tools", "version": "4.0.1"}
 DOCTYPE = ('<!DOCTYPE workspaceElements PUBLIC "-//CPN//DTD CPNXML 1.0//EN" '
            '"http://cpntools.org/DTD/6/cpn.dtd">')
+
+_TOOL = f' tool="{TOOL["tool"]}" version="{TOOL["version"]}"'
+# every CPN page is a child of <cpnet>: its nodes are at depth 3, their parts at 4 and 5
+_P2, _P3, _P4, _P5 = ("  " * d for d in (2, 3, 4, 5))
+_ORIGIN = '<posattr x="0.0" y="0.0" />'
+_TYPE = f"\n{_P5}{_ORIGIN}\n{_P5}<text{_TOOL}>{UNIT}</text>\n{_P4}</type>"
+_MARKED = f"\n{_P5}{_ORIGIN}\n{_P5}<text{_TOOL}>{ONE}</text>\n{_P4}</initmark>"
+_UNMARKED = f"\n{_P5}{_ORIGIN}\n{_P5}<text{_TOOL} />\n{_P4}</initmark>"
+_ANNOT = f"\n{_P5}{_ORIGIN}\n{_P5}<text{_TOOL}>{TOKEN}</text>\n{_P4}</annot>\n{_P3}</arc>"
+_FALSE = f"\n{_P5}{_ORIGIN}\n{_P5}<text{_TOOL}>[false]</text>\n{_P4}</cond>"
 
 
 @dataclass
@@ -52,47 +65,12 @@ class _PageOut:
     """The CPN elements of one HPN page, by the IR node they stand for."""
 
     xml_id: str
-    element: ET.Element
     place: dict[str, str] = field(default_factory=dict)       # IR place id -> CPN place id
     entry: dict[str, str] = field(default_factory=dict)       # child page -> input socket id
     exit: dict[str, str] = field(default_factory=dict)        # child page -> output socket id
     trans: dict[str, str] = field(default_factory=dict)       # IR transition id -> CPN id
-    subst: dict[str, ET.Element] = field(default_factory=dict)  # child page -> subst trans
-
-
-def _text(parent: ET.Element, tag: str, value: str, ids: _Ids) -> ET.Element:
-    el = ET.SubElement(parent, tag, id=ids())
-    ET.SubElement(el, "posattr", x="0.0", y="0.0")
-    ET.SubElement(el, "text", TOOL).text = value
-    return el
-
-
-def _node(parent: ET.Element, tag: str, xml_id: str, name: str, x: float, y: float
-          ) -> ET.Element:
-    el = ET.SubElement(parent, tag, id=xml_id)
-    ET.SubElement(el, "posattr", x=f"{x:.1f}", y=f"{y:.1f}")
-    ET.SubElement(el, "text").text = name
-    return el
-
-
-def _place(parent: ET.Element, xml_id: str, name: str, marked: bool, x: float, y: float,
-           ids: _Ids, port: str | None = None, fusion: str | None = None) -> ET.Element:
-    el = _node(parent, "place", xml_id, name, x, y)
-    ET.SubElement(el, "ellipse", w="60.0", h="40.0")
-    _text(el, "type", UNIT, ids)
-    _text(el, "initmark", ONE if marked else "", ids)
-    if port is not None:
-        ET.SubElement(el, "port", id=ids(), type=port)
-    if fusion is not None:
-        ET.SubElement(el, "fusioninfo", id=ids(), name=fusion)
-    return el
-
-
-def _arc(page: ET.Element, ids: _Ids, orientation: str, trans: str, place: str) -> None:
-    el = ET.SubElement(page, "arc", id=ids(), orientation=orientation, order="1")
-    ET.SubElement(el, "transend", idref=trans)
-    ET.SubElement(el, "placeend", idref=place)
-    _text(el, "annot", TOKEN, ids)
+    subst: dict[str, tuple[str, int]] = field(default_factory=dict)
+    # child page -> (substitution transition id, slot of its `subst` element in the output)
 
 
 def _marked(hpn: HPN) -> dict[str, bool]:
@@ -107,144 +85,211 @@ def _marked(hpn: HPN) -> dict[str, bool]:
     return marked
 
 
-def hpn_cpn(hpn: HPN) -> str:
-    """The `.cpn` text of the HPN (see the module docstring for the encoding)."""
-    ids = _Ids()
-    root = ET.Element("workspaceElements")
-    ET.SubElement(root, "generator", TOOL, format="6")
-    cpnet = ET.SubElement(root, "cpnet")
-    globbox = ET.SubElement(cpnet, "globbox")
-    block = ET.SubElement(globbox, "block", id=ids())
-    ET.SubElement(block, "id").text = "Standard declarations"
-    color = ET.SubElement(block, "color", id=ids())
-    ET.SubElement(color, "id").text = UNIT
-    ET.SubElement(color, "unit")
+class _CpnWriter:
+    """The document's lines (an entry may hold several, joined by newlines), written in the
+    order ElementTree would write the elements, with XML ids given in the order the elements
+    are made (see :func:`hpn_cpn`)."""
 
-    marked = _marked(hpn)
-    order = _page_order(hpn)
-    outs: dict[str, _PageOut] = {}
-    for pid in order:
-        el = ET.SubElement(cpnet, "page", id=ids())
-        ET.SubElement(el, "pageattr", name=pid)
-        outs[pid] = _PageOut(el.get("id", ""), el)
-    fusion_members: dict[str, list[str]] = {f: [] for f in hpn.fusions}
+    def __init__(self, hpn: HPN) -> None:
+        self.hpn = hpn
+        self.ix = hpn.index()
+        self.out: list[str] = []
+        self.ids = _Ids()
+        self.marked = _marked(hpn)
+        self.fusion_members: dict[str, list[str]] = {f: [] for f in hpn.fusions}
+        self.order: list[str] = []
+        self.outs: dict[str, _PageOut] = {}
 
-    for pid in order:
-        page = hpn.pages[pid]
-        out = outs[pid]
-        places, transitions, children, arcs = hpn.contents(pid)
+    def document(self) -> str:
+        ids, out = self.ids, self.out
+        out += ['<?xml version="1.0" encoding="UTF-8"?>', DOCTYPE, "<workspaceElements>",
+                f'  <generator{_TOOL} format="6" />', "  <cpnet>", "    <globbox>",
+                f'      <block id="{ids()}">', "        <id>Standard declarations</id>",
+                f'        <color id="{ids()}">', f"          <id>{UNIT}</id>",
+                "          <unit />", "        </color>", "      </block>", "    </globbox>"]
+        self.order = _page_order(self.hpn, self.ix)
+        self.outs = {pid: _PageOut(ids()) for pid in self.order}
+        for pid in self.order:
+            self.page(pid)
+        self.substitutions()
+        self.fusions()
+        self.instances()
+        out += [f"{_P2}<options />", f"{_P2}<binders />",
+                f'{_P2}<monitorblock name="Monitors" />', f'{_P2}<IndexNode expanded="true" />',
+                "  </cpnet>", "</workspaceElements>", ""]
+        return "\n".join(out)
+
+    # ---------------------------------------------------------------- one page
+    def page(self, pid: str) -> None:
+        page = self.hpn.pages[pid]
+        po = self.outs[pid]
+        net = self.ix.net(pid)
+        self.out.append(f'{_P2}<page id="{po.xml_id}">\n{_P3}<pageattr name="{attr(pid)}" />')
         x = 0.0
-        for pl in places:
+        for pl in net.places:
             port = None
             if page.parent is not None and pl.fusion is None:
                 port = "In" if pl.id == page.in_place else "Out" if pl.id == page.out_place else None
-            xml_id = ids()
-            _place(out.element, xml_id, pl.id, marked[pl.id], x, 0.0, ids, port, pl.fusion)
-            out.place[pl.id] = xml_id
-            if pl.fusion is not None:
-                fusion_members[pl.fusion].append(xml_id)
+            po.place[pl.id] = self.place(pl.id, x, 0.0, port, pl.fusion)
             x += 100.0
         x = 0.0
-        for child in children:
-            for which, port_place in (("in", child.in_place), ("out", child.out_place)):
-                pp = hpn.places[port_place]
-                xml_id = ids()
-                _place(out.element, xml_id, port_place, marked[port_place], x, 200.0, ids,
-                       fusion=pp.fusion)
-                (out.entry if which == "in" else out.exit)[child.id] = xml_id
-                if pp.fusion is not None:
-                    fusion_members[pp.fusion].append(xml_id)
+        for child in net.children:
+            for table, port_place in ((po.entry, child.in_place), (po.exit, child.out_place)):
+                table[child.id] = self.place(port_place, x, 200.0, None,
+                                             self.hpn.places[port_place].fusion)
                 x += 100.0
+        self.transitions(po, net.transitions, net.children)
+        self.arcs(po, net.arcs, net.children)
+        self.out.append(f"{_P2}</page>")
+
+    def place(self, name: str, x: float, y: float, port: str | None, fusion: str | None
+              ) -> str:
+        """A place named after an IR place (its marking is the IR place's); its XML id."""
+        ids = self.ids
+        xml_id = ids()
+        mark = _MARKED if self.marked[name] else _UNMARKED
+        text = (f'{_P3}<place id="{xml_id}">\n{_P4}<posattr x="{x:.1f}" y="{y:.1f}" />\n'
+                f'{_P4}{leaf("text", "", name)}\n{_P4}<ellipse w="60.0" h="40.0" />\n'
+                f'{_P4}<type id="{ids()}">{_TYPE}\n{_P4}<initmark id="{ids()}">{mark}')
+        if port is not None:
+            text += f'\n{_P4}<port id="{ids()}" type="{attr(port)}" />'
+        if fusion is not None:
+            text += f'\n{_P4}<fusioninfo id="{ids()}" name="{attr(fusion)}" />'
+            self.fusion_members[fusion].append(xml_id)
+        self.out.append(f"{text}\n{_P3}</place>")
+        return xml_id
+
+    def transitions(self, po: _PageOut, transitions: tuple[Transition, ...],
+                    children: tuple[Page, ...]) -> None:
+        """The page's transitions, then a substitution transition per sub-page (its `subst`
+        element goes into a slot, filled once every page has its ids)."""
+        ids, out = self.ids, self.out
         x = 0.0
         for tr in transitions:
             xml_id = ids()
-            el = _node(out.element, "trans", xml_id, tr.id, x, 100.0)
-            el.set("explicit", "false")
-            ET.SubElement(el, "box", w="60.0", h="40.0")
+            text = _trans_head(xml_id, tr.id, x, 100.0, "60.0")
             if tr.condition is not None and tr.condition.constant is False:
-                _text(el, "cond", "[false]", ids)
-            out.trans[tr.id] = xml_id
+                text += f'\n{_P4}<cond id="{ids()}">{_FALSE}'
+            out.append(f"{text}\n{_P3}</trans>")
+            po.trans[tr.id] = xml_id
             x += 100.0
         for child in children:
             xml_id = ids()
-            el = _node(out.element, "trans", xml_id, child.id, x, 300.0)
-            el.set("explicit", "false")
-            ET.SubElement(el, "box", w="80.0", h="40.0")
-            out.subst[child.id] = el
+            out.append(_trans_head(xml_id, child.id, x, 300.0, "80.0"))
+            po.subst[child.id] = (xml_id, len(out))
+            out += ["", f"{_P3}</trans>"]
             x += 100.0
-        # arcs of the page's own net, each (orientation, transition, place) once: the
-        # flattened net's pre- and post-sets are sets
+
+    def arcs(self, po: _PageOut, arcs: tuple[Arc, ...], children: tuple[Page, ...]) -> None:
+        """The arcs of the page's own net, each (orientation, transition, place) once (the
+        flattened net's pre- and post-sets are sets), then those of the substitutions."""
         seen: set[tuple[str, str, str]] = set()
         for a in arcs:
-            if a.target in out.trans:
-                key = ("PtoT", out.trans[a.target], _place_end(out, a.source, entering=False))
+            if a.target in po.trans:
+                key = ("PtoT", po.trans[a.target], _place_end(po, a.source, entering=False))
             else:
-                key = ("TtoP", out.trans[a.source], _place_end(out, a.target, entering=True))
+                key = ("TtoP", po.trans[a.source], _place_end(po, a.target, entering=True))
             if key not in seen:
                 seen.add(key)
-                _arc(out.element, ids, *key)
+                self.arc(*key)
         for child in children:
-            st = out.subst[child.id].get("id", "")
-            _arc(out.element, ids, "PtoT", st, out.entry[child.id])
-            _arc(out.element, ids, "TtoP", st, out.exit[child.id])
+            st = po.subst[child.id][0]
+            self.arc("PtoT", st, po.entry[child.id])
+            self.arc("TtoP", st, po.exit[child.id])
 
-    # substitution transitions, now that every page's port places have ids
-    for pid in order:
-        out = outs[pid]
-        for child in hpn.children(pid):
-            sub = outs[child.id]
-            pairs = [(child.in_place, out.entry[child.id]), (child.out_place, out.exit[child.id])]
-            portsock = "".join(f"({sub.place[port]},{sock})" for port, sock in pairs
-                               if hpn.places[port].fusion is None)
-            subst = ET.SubElement(out.subst[child.id], "subst", subpage=sub.xml_id,
-                                  portsock=portsock)
-            ET.SubElement(subst, "subpageinfo", id=ids(), name=child.id)
+    def arc(self, orientation: str, trans: str, place: str) -> None:
+        ids = self.ids
+        self.out.append(
+            f'{_P3}<arc id="{ids()}" orientation="{orientation}" order="1">\n'
+            f'{_P4}<transend idref="{trans}" />\n{_P4}<placeend idref="{place}" />\n'
+            f'{_P4}<annot id="{ids()}">{_ANNOT}')
 
-    for fid, members in fusion_members.items():
-        fel = ET.SubElement(cpnet, "fusion", id=ids(), name=fid)
-        for m in members:
-            ET.SubElement(fel, "fusion_elm", idref=m)
+    # ---------------------------------------------------------------- after the pages
+    def substitutions(self) -> None:
+        """The `subst` elements, now that every page's port places have ids."""
+        hpn = self.hpn
+        for pid in self.order:
+            po = self.outs[pid]
+            for child in self.ix.children(pid):
+                sub = self.outs[child.id]
+                pairs = ((child.in_place, po.entry[child.id]),
+                         (child.out_place, po.exit[child.id]))
+                portsock = "".join(f"({sub.place[port]},{sock})" for port, sock in pairs
+                                   if hpn.places[port].fusion is None)
+                self.out[po.subst[child.id][1]] = (
+                    f'{_P4}<subst subpage="{sub.xml_id}" portsock="{attr(portsock)}">\n'
+                    f'{_P5}<subpageinfo id="{self.ids()}" name="{attr(child.id)}" />\n'
+                    f"{_P4}</subst>")
 
-    instances = ET.SubElement(cpnet, "instances")
+    def fusions(self) -> None:
+        out = self.out
+        for fid, members in self.fusion_members.items():
+            head = f'{_P2}<fusion id="{self.ids()}" name="{attr(fid)}"'
+            if not members:
+                out.append(head + " />")
+                continue
+            out.append(head + ">")
+            out += [f'{_P3}<fusion_elm idref="{m}" />' for m in members]
+            out.append(f"{_P2}</fusion>")
 
-    def instance(parent: ET.Element, page: Page, attr: dict[str, str]) -> None:
-        el = ET.SubElement(parent, "instance", {"id": ids(), **attr})
-        for child in hpn.children(page.id):
-            instance(el, child, {"trans": outs[page.id].subst[child.id].get("id", "")})
+    def instances(self) -> None:
+        """The prime pages (no parent), each with its substitution transitions' instances."""
+        roots = [pid for pid in self.order if self.hpn.pages[pid].parent is None]
+        if not roots:
+            self.out.append(f"{_P2}<instances />")
+            return
+        self.out.append(f"{_P2}<instances>")
+        pad = Indents()
+        for pid in roots:
+            self.instance(pad, 3, pid, f' page="{self.outs[pid].xml_id}"')
+        self.out.append(f"{_P2}</instances>")
 
-    for pid in order:
-        if hpn.pages[pid].parent is None:
-            instance(instances, hpn.pages[pid], {"page": outs[pid].xml_id})
-    ET.SubElement(cpnet, "options")
-    ET.SubElement(cpnet, "binders")
-    ET.SubElement(cpnet, "monitorblock", name="Monitors")
-    ET.SubElement(cpnet, "IndexNode", expanded="true")
-    ET.indent(root)
-    return ('<?xml version="1.0" encoding="UTF-8"?>\n' + DOCTYPE + "\n"
-            + ET.tostring(root, encoding="unicode") + "\n")
+    def instance(self, pad: Indents, depth: int, pid: str, attrs: str) -> None:
+        head = f'{pad[depth][1:]}<instance id="{self.ids()}"{attrs}'
+        children = self.ix.children(pid)
+        if not children:
+            self.out.append(head + " />")
+            return
+        self.out.append(head + ">")
+        for child in children:
+            self.instance(pad, depth + 1, child.id,
+                          f' trans="{self.outs[pid].subst[child.id][0]}"')
+        self.out.append(f"{pad[depth][1:]}</instance>")
 
 
-def _place_end(out: _PageOut, node: str, entering: bool) -> str:
+def _trans_head(xml_id: str, name: str, x: float, y: float, width: str) -> str:
+    """The opening of a `trans` element and its fixed parts (the caller closes it)."""
+    return (f'{_P3}<trans id="{xml_id}" explicit="false">\n'
+            f'{_P4}<posattr x="{x:.1f}" y="{y:.1f}" />\n{_P4}{leaf("text", "", name)}\n'
+            f'{_P4}<box w="{width}" h="40.0" />')
+
+
+def hpn_cpn(hpn: HPN) -> str:
+    """The `.cpn` text of the HPN (see the module docstring for the encoding)."""
+    return _CpnWriter(hpn).document()
+
+
+def _place_end(po: _PageOut, node: str, entering: bool) -> str:
     """The CPN place an arc of the page attaches to: the place itself, or the input
     (entering) / output socket of a sub-page node."""
-    if node in out.place:
-        return out.place[node]
-    return out.entry[node] if entering else out.exit[node]
+    if node in po.place:
+        return po.place[node]
+    return po.entry[node] if entering else po.exit[node]
 
 
-def _page_order(hpn: HPN) -> list[str]:
+def _page_order(hpn: HPN, ix: HpnIndex) -> list[str]:
     """Pages depth first from the root H, then the device pages (each with its sub-pages)."""
     order: list[str] = []
 
     def visit(pid: str) -> None:
         order.append(pid)
-        for child in hpn.children(pid):
+        for child in ix.children(pid):
             visit(child.id)
 
     visit(hpn.root)
-    for pid, page in hpn.pages.items():
-        if page.parent is None and pid != hpn.root:
-            visit(pid)
+    for page in ix.roots:
+        if page.id != hpn.root:
+            visit(page.id)
     return order
 
 

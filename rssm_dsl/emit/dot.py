@@ -39,41 +39,25 @@ def page_attrs(page: Page) -> str:
     return f"shape=doublecircle, label={quote(page.id)}"
 
 
-def _cluster(hpn: HPN, page: Page, places: list[str], trans: list[str], arcs: list[tuple[str, str]],
-             subpages: list[Page], n: int) -> list[str]:
+def _cluster(hpn: HPN, page: Page, n: int) -> list[str]:
+    net = hpn.index().net(page.id)
     out = [f"  subgraph cluster_{n} {{", f"    label={quote(page.id + '  ' + page.label)};"]
-    for pid in places:
-        out.append(f"    {quote(pid)} [{place_attrs(hpn, pid)}];")
-    for tid in trans:
-        out.append(f"    {quote(tid)} [{transition_attrs(hpn, tid)}];")
-    for sp in subpages:
+    for p in net.places:
+        out.append(f"    {quote(p.id)} [{place_attrs(hpn, p.id)}];")
+    for t in net.transitions:
+        out.append(f"    {quote(t.id)} [{transition_attrs(hpn, t.id)}];")
+    for sp in net.children:
         out.append(f"    {quote(sp.id)} [{page_attrs(sp)}];")
-    for src, dst in arcs:
-        out.append(f"    {quote(src)} -> {quote(dst)};")
+    for a in net.arcs:
+        out.append(f"    {quote(a.source)} -> {quote(a.target)};")
     out.append("  }")
     return out
 
 
 def emit_dot(hpn: HPN) -> dict[str, str]:
-    places: dict[str, list[str]] = {}
-    trans: dict[str, list[str]] = {}
-    arcs: dict[str, list[tuple[str, str]]] = {}
-    subpages: dict[str, list[Page]] = {}
-    for p in hpn.places.values():
-        places.setdefault(p.page, []).append(p.id)
-    for t in hpn.transitions.values():
-        trans.setdefault(t.page, []).append(t.id)
-    for a in hpn.arcs:
-        arcs.setdefault(a.page, []).append((a.source, a.target))
-    for pg in hpn.pages.values():
-        if pg.parent is not None:
-            subpages.setdefault(pg.parent, []).append(pg)
     files: dict[int, list[str]] = {}
     for n, page in enumerate(pages_in_order(hpn)):
-        files.setdefault(page.layer, []).extend(
-            _cluster(hpn, page, places.get(page.id, []), trans.get(page.id, []),
-                     arcs.get(page.id, []), subpages.get(page.id, []), n)
-        )
+        files.setdefault(page.layer, []).extend(_cluster(hpn, page, n))
     out: dict[str, str] = {}
     for layer, body in sorted(files.items()):
         name = LAYER_FILES[layer]

@@ -13,24 +13,16 @@ def _at(span: Span) -> str:
 
 def dump_text(hpn: HPN) -> str:
     lines = [f"hpn {hpn.system}"]
-    places_by_page: dict[str, list[str]] = {}
-    for p in hpn.places.values():
-        places_by_page.setdefault(p.page, []).append(p.id)
-    trans_by_page: dict[str, list[str]] = {}
-    for t in hpn.transitions.values():
-        trans_by_page.setdefault(t.page, []).append(t.id)
-    arcs_by_page: dict[str, list[str]] = {}
-    for a in hpn.arcs:
-        arcs_by_page.setdefault(a.page, []).append(f"{a.source} -> {a.target}")
+    ix = hpn.index()
     for page in pages_in_order(hpn):
+        net = ix.net(page.id)
         lines.append("")
         lines.append(
             f"page {page.id} {page.kind.value} layer={page.layer}.{page.sublayer} "
             f"parent={page.parent or '-'} in={page.in_place} out={page.out_place} "
             f"{_at(page.span)}"
         )
-        for pid in places_by_page.get(page.id, []):
-            p = hpn.places[pid]
+        for p in net.places:
             extra = []
             if p.initial:
                 extra.append("initial")
@@ -40,17 +32,16 @@ def dump_text(hpn: HPN) -> str:
                 op = p.operation
                 void = " void" if op.void else ""
                 extra.append(f"op={op.kind.value}{void} {{{op.text}}}")
-            lines.append(f"  place {pid} {' '.join(extra)} {_at(p.span)}".replace("  @", " @"))
-        for tid in trans_by_page.get(page.id, []):
-            t = hpn.transitions[tid]
+            lines.append(f"  place {p.id} {' '.join(extra)} {_at(p.span)}".replace("  @", " @"))
+        for t in net.transitions:
             cond = ""
             if t.condition is not None:
                 c = t.condition
                 const = "" if c.constant is None else f" const={str(c.constant).lower()}"
                 cond = f" cond={c.kind.value}{const} [{c.text}]"
-            lines.append(f"  transition {tid} role={t.role.value}{cond} {_at(t.span)}")
-        for arc in arcs_by_page.get(page.id, []):
-            lines.append(f"  arc {arc}")
+            lines.append(f"  transition {t.id} role={t.role.value}{cond} {_at(t.span)}")
+        for arc in net.arcs:
+            lines.append(f"  arc {arc.source} -> {arc.target}")
     lines.append("")
     for f in hpn.fusions.values():
         init = " initial" if f.initial else ""

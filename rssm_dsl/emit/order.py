@@ -6,14 +6,12 @@ from rssm_dsl.hpn.ir import HPN, Page
 
 
 def pages_in_order(hpn: HPN) -> list[Page]:
-    children: dict[str | None, list[Page]] = {}
-    for p in hpn.pages.values():
-        children.setdefault(p.parent, []).append(p)
+    ix = hpn.index()
     out: list[Page] = []
     stack = [hpn.pages[hpn.root], *(hpn.pages[d] for d in hpn.devices)]
     stack.reverse()
     while stack:
         page = stack.pop()
         out.append(page)
-        stack.extend(reversed(children.get(page.id, [])))
+        stack.extend(reversed(ix.children(page.id)))
     return out

@@ -14,134 +14,179 @@ pages; the flat form is for them. In the paged form:
   (a P/T net has no guards); other conditions are free choices.
 
 Reading the reference nodes as the nodes they refer to gives the flattened net back.
-XML ids are generated (`p1`, `t1`, `r1`, `a1`, `pg1`); names go through ElementTree.
+XML ids are generated (`p1`, `t1`, `r1`, `a1`, `pg1`). Both forms are written as text in one
+pass over the net (the paged form over the IR's index: linear in the size of the net), byte
+for byte as ElementTree would write them indented, with its escaping
+(:mod:`rssm_dsl.emit.xmltext`); the references to a sub-page's ports name ids given when
+the sub-page is written, and are filled into slots kept for them.
 """
 
 from __future__ import annotations
 
-import xml.etree.ElementTree as ET
-
+from rssm_dsl.emit.xmltext import Indents, attr, leaf
 from rssm_dsl.hpn.flat import FlatNet
 from rssm_dsl.hpn.flatten import flatten
-from rssm_dsl.hpn.ir import HPN
+from rssm_dsl.hpn.ir import HPN, Arc, Page, Place, Transition
 
 PTNET = "http://www.pnml.org/version-2009/grammar/ptnet"
 NS = "http://www.pnml.org/version-2009/grammar/pnml"
+HEADER = '<?xml version="1.0" encoding="UTF-8"?>'
+_TOOL = ' tool="rssmc" version="1"'
 
 
-def _text(parent: ET.Element, tag: str, value: str) -> None:
-    ET.SubElement(ET.SubElement(parent, tag), "text").text = value
+def _named(pad: Indents, depth: int, value: str) -> str:
+    """`<name><text>value</text></name>` as a child at ``depth`` (no leading newline)."""
+    return (f"{pad[depth][1:]}<name>{pad[depth + 1]}{leaf('text', '', value)}"
+            f"{pad[depth]}</name>")
+
+
+def _head(system: str, title: str) -> list[str]:
+    pad = Indents()
+    return [HEADER, f'<pnml xmlns="{attr(NS)}">',
+            f'  <net id="{attr("net-" + system)}" type="{attr(PTNET)}">',
+            _named(pad, 2, f"{system} ({title})")]
+
+
+_TAIL = ["  </net>", "</pnml>", ""]
 
 
 def flat_pnml(net: FlatNet) -> str:
-    root = ET.Element("pnml", xmlns=NS)
-    xnet = ET.SubElement(root, "net", id=f"net-{net.system}", type=PTNET)
-    _text(xnet, "name", f"{net.system} (flattened HPN)")
-    page = ET.SubElement(xnet, "page", id="flat")
+    pad = Indents()
+    s3, s4, s5 = pad[3], pad[4], pad[5]
+    out = _head(net.system, "flattened HPN")
+    out.append('    <page id="flat">')
+    marking = f"{s4}<initialMarking>{s5}<text>1</text>{s4}</initialMarking>"
     for p in net.places:
-        xp = ET.SubElement(page, "place", id=f"p{p.index}")
-        _text(xp, "name", p.name)
-        if p.index in net.initial:
-            _text(xp, "initialMarking", "1")
-        ET.SubElement(xp, "toolspecific", tool="rssmc", version="1").text = p.label
+        out.append(f'{s3[1:]}<place id="p{p.index}">{s4}<name>{s5}{leaf("text", "", p.name)}'
+                   f"{s4}</name>{marking if p.index in net.initial else ''}"
+                   f"{s4}{leaf('toolspecific', _TOOL, p.label)}{s3}</place>")
     for t in net.transitions:
-        xt = ET.SubElement(page, "transition", id=f"t{t.index}")
-        _text(xt, "name", t.name)
-        ET.SubElement(xt, "toolspecific", tool="rssmc", version="1").text = t.label
+        out.append(f'{s3[1:]}<transition id="t{t.index}">{s4}<name>{s5}'
+                   f'{leaf("text", "", t.name)}{s4}</name>'
+                   f"{s4}{leaf('toolspecific', _TOOL, t.label)}{s3}</transition>")
     n = 0
     for t in net.transitions:
         for src in t.pre:
-            ET.SubElement(page, "arc", id=f"a{n}", source=f"p{src}", target=f"t{t.index}")
+            out.append(f'{s3[1:]}<arc id="a{n}" source="p{src}" target="t{t.index}" />')
             n += 1
         for dst in t.post:
-            ET.SubElement(page, "arc", id=f"a{n}", source=f"t{t.index}", target=f"p{dst}")
+            out.append(f'{s3[1:]}<arc id="a{n}" source="t{t.index}" target="p{dst}" />')
             n += 1
-    ET.indent(root)
-    return '<?xml version="1.0" encoding="UTF-8"?>\n' + ET.tostring(root, encoding="unicode") + "\n"
+    out.append("    </page>")
+    return "\n".join(out + _TAIL)
 
 
-def _document(root: ET.Element) -> str:
-    ET.indent(root)
-    return '<?xml version="1.0" encoding="UTF-8"?>\n' + ET.tostring(root, encoding="unicode") + "\n"
+def _dropped(tr: Transition) -> bool:
+    return tr.condition is not None and tr.condition.constant is False
 
 
-def _tool(parent: ET.Element, **attrs: str) -> ET.Element:
-    return ET.SubElement(parent, "toolspecific", {"tool": "rssmc", "version": "1", **attrs})
+class _PagedWriter:
+    """The paged document's lines (an entry may hold several, joined by newlines), with XML
+    ids given in the order the elements are written (see :func:`paged_pnml`)."""
 
+    def __init__(self, hpn: HPN) -> None:
+        self.hpn = hpn
+        self.ix = hpn.index()
+        self.pad = Indents()
+        self.out = _head(hpn.system, "HPN, one page per net")
+        self.counts = {"pg": 0, "p": 0, "r": 0, "t": 0, "a": 0}
+        self.marked = {pid: p.initial for pid, p in hpn.places.items()}
+        for fs in hpn.fusions.values():
+            on = any(hpn.places[m].initial for m in fs.places if m in hpn.places)
+            self.marked.update(dict.fromkeys(fs.places, on))
+        self.xml_of: dict[str, str] = {}         # IR place -> its PNML place / reference id
+        self.primary: dict[str, str] = {}        # fusion set -> PNML id of its place
+        self.pending: list[tuple[int, str, str, int]] = []
+        # (slot in the output, reference id, IR place it refers to, depth): the references
+        # to a sub-page's ports, whose ids are given when the sub-page is written
 
-def _dropped(hpn: HPN, tid: str) -> bool:
-    cond = hpn.transitions[tid].condition
-    return cond is not None and cond.constant is False
+    def new_id(self, prefix: str) -> str:
+        self.counts[prefix] += 1
+        return f"{prefix}{self.counts[prefix]}"
 
+    def document(self) -> str:
+        self.page(2, self.hpn.root)
+        for pg in self.ix.roots:
+            if pg.id != self.hpn.root:
+                self.page(2, pg.id)
+        pad, out = self.pad, self.out
+        for slot, ref, port, depth in self.pending:
+            out[slot] = f'{pad[depth][1:]}<referencePlace id="{ref}" ref="{self.xml_of[port]}">'
+        return "\n".join(out + _TAIL)
 
-def paged_pnml(hpn: HPN) -> str:
-    """The HPN with its pages nested as in the hierarchy (see the module docstring)."""
-    root = ET.Element("pnml", xmlns=NS)
-    xnet = ET.SubElement(root, "net", id=f"net-{hpn.system}", type=PTNET)
-    _text(xnet, "name", f"{hpn.system} (HPN, one page per net)")
-    counts: dict[str, int] = {}
-
-    def new_id(prefix: str) -> str:
-        counts[prefix] = counts.get(prefix, 0) + 1
-        return f"{prefix}{counts[prefix]}"
-
-    marked = {pid: p.initial for pid, p in hpn.places.items()}
-    for fs in hpn.fusions.values():
-        on = any(hpn.places[m].initial for m in fs.places if m in hpn.places)
-        marked.update(dict.fromkeys(fs.places, on))
-    xml_of: dict[str, str] = {}                  # IR place -> its PNML place / reference id
-    primary: dict[str, str] = {}                 # fusion set -> PNML id of its place
-    pending: list[tuple[ET.Element, str]] = []   # (referencePlace, IR place it refers to)
-
-    def page(parent: ET.Element, pid: str) -> None:
-        pg = hpn.pages[pid]
-        xpage = ET.SubElement(parent, "page", id=new_id("pg"))
-        _text(xpage, "name", pid)
-        _tool(xpage, kind=pg.kind.value).text = pg.label
-        places, transitions, children, arcs = hpn.contents(pid)
-        for pl in places:
-            if pl.fusion is not None and pl.fusion in primary:
-                xml_id = new_id("r")
-                xp = ET.SubElement(xpage, "referencePlace", id=xml_id, ref=primary[pl.fusion])
-                _text(xp, "name", pl.id)
-            else:
-                xml_id = new_id("p")
-                xp = ET.SubElement(xpage, "place", id=xml_id)
-                _text(xp, "name", pl.id)
-                if marked[pl.id]:
-                    _text(xp, "initialMarking", "1")
-                if pl.fusion is not None:
-                    primary[pl.fusion] = xml_id
-            xml_of[pl.id] = xml_id
-            tool = _tool(xp)
-            tool.text = pl.label
-            if pl.fusion is not None:
-                tool.set("fusion", pl.fusion)
-            if pl.id == pg.in_place:
-                tool.set("port", "in")
-            elif pl.id == pg.out_place:
-                tool.set("port", "out")
+    def page(self, depth: int, pid: str) -> None:
+        pg = self.hpn.pages[pid]
+        net = self.ix.net(pid)
+        pad = self.pad
+        tool = leaf("toolspecific", f"{_TOOL} kind={_q(pg.kind.value)}", pg.label)
+        self.out.append(f'{pad[depth][1:]}<page id="{self.new_id("pg")}">\n'
+                        f"{_named(pad, depth + 1, pid)}{pad[depth + 1]}{tool}")
+        for pl in net.places:
+            self.place(depth + 1, pl, pg)
         entry: dict[str, str] = {}
         leave: dict[str, str] = {}
-        for child in children:
-            for port, table in ((child.in_place, entry), (child.out_place, leave)):
-                ref = ET.SubElement(xpage, "referencePlace", id=new_id("r"), ref="")
-                _text(ref, "name", port)
-                _tool(ref, page=child.id)
-                pending.append((ref, port))
-                table[child.id] = ref.get("id", "")
-        trans: dict[str, str] = {}
-        for tr in transitions:
-            if _dropped(hpn, tr.id):
-                continue
-            xml_id = new_id("t")
-            xt = ET.SubElement(xpage, "transition", id=xml_id)
-            _text(xt, "name", tr.id)
-            _tool(xt, role=tr.role.value).text = tr.label
-            trans[tr.id] = xml_id
+        for child in net.children:
+            entry[child.id] = self.port_reference(depth + 1, child.in_place, child.id)
+            leave[child.id] = self.port_reference(depth + 1, child.out_place, child.id)
+        trans = {tr.id: self.transition(depth + 1, tr) for tr in net.transitions
+                 if not _dropped(tr)}
+        self.arcs(depth + 1, net.arcs, trans, entry, leave)
+        for child in net.children:
+            self.page(depth + 1, child.id)
+        self.out.append(f"{pad[depth][1:]}</page>")
+
+    def place(self, depth: int, pl: Place, pg: Page) -> None:
+        """An IR place: a `place`, or a reference to its fusion set's place."""
+        s1, s2, s3 = self.pad[depth], self.pad[depth + 1], self.pad[depth + 2]
+        tool = _TOOL
+        if pl.fusion is not None:
+            tool += f" fusion={_q(pl.fusion)}"
+        if pl.id == pg.in_place:
+            tool += ' port="in"'
+        elif pl.id == pg.out_place:
+            tool += ' port="out"'
+        name = f"{s2}<name>{s3}{leaf('text', '', pl.id)}{s2}</name>"
+        tail = f"{s2}{leaf('toolspecific', tool, pl.label)}"
+        if pl.fusion is not None and pl.fusion in self.primary:
+            xml_id = self.new_id("r")
+            self.out.append(f'{s1[1:]}<referencePlace id="{xml_id}" '
+                            f'ref="{self.primary[pl.fusion]}">{name}{tail}{s1}</referencePlace>')
+        else:
+            xml_id = self.new_id("p")
+            mark = (f"{s2}<initialMarking>{s3}<text>1</text>{s2}</initialMarking>"
+                    if self.marked[pl.id] else "")
+            self.out.append(f'{s1[1:]}<place id="{xml_id}">{name}{mark}{tail}{s1}</place>')
+            if pl.fusion is not None:
+                self.primary[pl.fusion] = xml_id
+        self.xml_of[pl.id] = xml_id
+
+    def port_reference(self, depth: int, port: str, child: str) -> str:
+        """A reference to a sub-page's input or output place; its id. The opening tag goes
+        into a slot, filled at the end (the place has no id yet)."""
+        s1, s2, s3 = self.pad[depth], self.pad[depth + 1], self.pad[depth + 2]
+        ref = self.new_id("r")
+        self.pending.append((len(self.out), ref, port, depth))
+        self.out.append("")
+        self.out.append(f"{s2[1:]}<name>{s3}{leaf('text', '', port)}{s2}</name>{s2}"
+                        f"<toolspecific{_TOOL} page={_q(child)} />{s1}</referencePlace>")
+        return ref
+
+    def transition(self, depth: int, tr: Transition) -> str:
+        s1, s2, s3 = self.pad[depth], self.pad[depth + 1], self.pad[depth + 2]
+        xml_id = self.new_id("t")
+        tool = leaf("toolspecific", f"{_TOOL} role={_q(tr.role.value)}", tr.label)
+        self.out.append(f'{s1[1:]}<transition id="{xml_id}">{s2}<name>{s3}'
+                        f"{leaf('text', '', tr.id)}{s2}</name>{s2}{tool}{s1}</transition>")
+        return xml_id
+
+    def arcs(self, depth: int, arcs: tuple[Arc, ...], trans: dict[str, str],
+             entry: dict[str, str], leave: dict[str, str]) -> None:
+        """The page's arcs between written nodes, each (source, target) once."""
+        transitions, xml_of = self.hpn.transitions, self.xml_of
+        indent = self.pad[depth][1:]
         seen: set[tuple[str, str]] = set()
         for a in arcs:
-            if a.target in hpn.transitions:
+            if a.target in transitions:
                 if a.target not in trans:
                     continue
                 key = (xml_of.get(a.source) or leave[a.source], trans[a.target])
@@ -151,17 +196,18 @@ def paged_pnml(hpn: HPN) -> str:
                 key = (trans[a.source], xml_of.get(a.target) or entry[a.target])
             if key not in seen:
                 seen.add(key)
-                ET.SubElement(xpage, "arc", id=new_id("a"), source=key[0], target=key[1])
-        for child in children:
-            page(xpage, child.id)
+                self.out.append(f'{indent}<arc id="{self.new_id("a")}" source="{key[0]}" '
+                                f'target="{key[1]}" />')
 
-    page(xnet, hpn.root)
-    for pid, pg in hpn.pages.items():
-        if pg.parent is None and pid != hpn.root:
-            page(xnet, pid)
-    for ref, port in pending:
-        ref.set("ref", xml_of[port])
-    return _document(root)
+
+def paged_pnml(hpn: HPN) -> str:
+    """The HPN with its pages nested as in the hierarchy (see the module docstring)."""
+    return _PagedWriter(hpn).document()
+
+
+def _q(value: str) -> str:
+    """An attribute value, escaped and quoted."""
+    return f'"{attr(value)}"'
 
 
 def emit_pnml(hpn: HPN) -> dict[str, str]:

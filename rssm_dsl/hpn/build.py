@@ -10,22 +10,28 @@ not yet taken) and `2` (empty), exactly one marked, `2` at start.
 
 from __future__ import annotations
 
-from dataclasses import dataclass, field
+from collections.abc import Sequence
+from dataclasses import dataclass, field, replace
 
 from rssm_core.modes import Slot, Step, receive_net, send_net
 from rssm_dsl.hpn import names as N
 from rssm_dsl.hpn.flat import Role
 from rssm_dsl.hpn.ir import (
     HPN,
+    SYSTEM_SCOPE,
     Arc,
     Condition,
     CondKind,
+    FusionName,
     FusionSet,
+    Name,
     Operation,
     OpKind,
     Page,
     PageKind,
+    Part,
     Place,
+    Scope,
     Transition,
 )
 from rssm_dsl.semantics.behaviours import combination_text
@@ -55,6 +61,19 @@ class _Endpoint:
     empty: list[str] = field(default_factory=list)
 
 
+@dataclass
+class _Tables:
+    """The HPN's tables while it is built: plain containers, which the HPN takes over at the
+    end (its own tables count their changes for its index; nothing indexes a half-built net)."""
+
+    pages: dict[str, Page] = field(default_factory=dict)
+    places: dict[str, Place] = field(default_factory=dict)
+    transitions: dict[str, Transition] = field(default_factory=dict)
+    arcs: list[Arc] = field(default_factory=list)
+    fusions: dict[str, FusionSet] = field(default_factory=dict)
+    devices: list[str] = field(default_factory=list)
+
+
 @dataclass(frozen=True)
 class _Owner:
     """A subsystem or a device, as the builder needs it."""
@@ -70,46 +89,62 @@ class _Owner:
 class HpnBuilder:
     def __init__(self, system: System) -> None:
         self.s = system
-        self.h = HPN(system.name, root="H")
+        self.h = _Tables()
         self.channel_of: dict[str, Channel] = {}
         for ch in system.channels:
             self.channel_of[ch.producer.qualified] = ch
             self.channel_of[ch.consumer.qualified] = ch
         self.ends: dict[tuple[str, str], _Endpoint] = {}  # (channel id, side) -> fused places
         self._bodies: dict[int, str] = {}
+        self._scopes: dict[str, Scope] = {}  # page id -> where it lies
 
     # ------------------------------------------------------------------ primitives
-    def _page(self, pid: str, kind: PageKind, parent: str | None, span: Span, label: str,
-              owner: str, in_id: str, out_id: str, behaviour: str | None = None,
+    # Elements are named by `names` (N.place(...), ...); the primitives give each name its
+    # scope (the page it lies on), store it as the element's key and return the printed id.
+    def _page(self, name: Name, kind: PageKind, parent: str | None, span: Span, label: str,
+              owner: str, in_id: Name, out_id: Name, behaviour: str | None = None,
               initial: bool = False) -> str:
-        self.h.pages[pid] = Page(pid, kind, parent, in_id, out_id, span, label, owner, behaviour)
+        above = self._scopes[parent] if parent is not None else SYSTEM_SCOPE
+        scope = above.below(kind, name.within(above).local)
+        key = name.within(scope)
+        pid = key.text
+        self._scopes[pid] = scope
+        self.h.pages[pid] = Page(pid, kind, parent, in_id.text, out_id.text, span, label, owner,
+                                 behaviour, key)
         self._place(in_id, pid, span, f"{label}: start", initial=initial)
         self._place(out_id, pid, span, f"{label}: end")
         return pid
 
-    def _place(self, pid: str, page: str, span: Span, label: str, op: Operation | None = None,
+    def _place(self, name: Name, page: str, span: Span, label: str, op: Operation | None = None,
                initial: bool = False, fusion: str | None = None) -> str:
+        key = name.within(self._scopes[page])
+        pid = key.text
         assert pid not in self.h.places, pid
-        self.h.places[pid] = Place(pid, page, span, label, op, fusion, initial)
+        self.h.places[pid] = Place(pid, page, span, label, op, fusion, initial, key)
         return pid
 
-    def _trans(self, tid: str, page: str, span: Span, label: str, role: Role = Role.STRUCTURE,
+    def _trans(self, name: Name, page: str, span: Span, label: str, role: Role = Role.STRUCTURE,
                cond: Condition | None = None) -> str:
+        key = name.within(self._scopes[page])
+        tid = key.text
         assert tid not in self.h.transitions, tid
-        self.h.transitions[tid] = Transition(tid, page, span, label, role, cond)
+        self.h.transitions[tid] = Transition(tid, page, span, label, role, cond, key)
         return tid
 
-    def _arcs(self, page: str, sources: list[str], t: str, targets: list[str]) -> None:
+    def _arcs(self, page: str, sources: Sequence[str | Name], t: str | Name,
+              targets: Sequence[str | Name]) -> None:
+        tid = t if isinstance(t, str) else t.text
+        arcs = self.h.arcs
         for s in sources:
-            self.h.arcs.append(Arc(page, s, t))
+            arcs.append(Arc(page, s if isinstance(s, str) else s.text, tid))
         for d in targets:
-            self.h.arcs.append(Arc(page, t, d))
+            arcs.append(Arc(page, tid, d if isinstance(d, str) else d.text))
 
     # ------------------------------------------------------------------ layers 1-3
     def build(self) -> HPN:
         s = self.s
-        root = self._page("H", PageKind.SYSTEM, None, s.span, f"system {s.name}", s.name,
-                          N.place("in"), N.place("out"), initial=True)
+        root = self._page(N.system_page(), PageKind.SYSTEM, None, s.span, f"system {s.name}",
+                          s.name, N.place("in"), N.place("out"), initial=True)
         agent_pages = [self._agent(a.name, a.designator, a.subsystems, a.span, root)
                        for a in s.agents]
         self._trans(N.transition("in"), root, s.span, f"system {s.name} starts")
@@ -120,7 +155,8 @@ class HpnBuilder:
             for d in a.devices:
                 self._device(d, a.designator)
         self._fusions()
-        return self.h
+        h = self.h
+        return HPN(s.name, root, h.pages, h.places, h.transitions, h.arcs, h.fusions, h.devices)
 
     def _agent(self, name: str, j: str, subsystems: tuple[Subsystem, ...], span: Span,
                parent: str) -> str:
@@ -305,7 +341,7 @@ class HpnBuilder:
         return pid
 
     def _mode_page(self, o: _Owner, buf: Buffer, verb: str, k: int, parent: str,
-                   base: tuple[object, ...], who: str, w: str | None) -> str:
+                   base: tuple[Part, ...], who: str, w: str | None) -> str:
         ch = self.channel_of.get(buf.qualified)
         kind = PageKind.SEND_BUFFER if verb == "snd" else PageKind.RECEIVE_BUFFER
         pb = (*base, k)
@@ -314,7 +350,7 @@ class HpnBuilder:
                          f"{who} {'sends' if verb == 'snd' else 'receives'} {buf.name} "
                          f"({buf.mode.value})", o.id, N.place(*pb, "in", sup=sup),
                          N.place(*pb, "out", sup=sup), w)
-        p_in, p_out = N.place(*pb, "in", sup=sup), N.place(*pb, "out", sup=sup)
+        p_in, p_out = N.place(*pb, "in", sup=sup).text, N.place(*pb, "out", sup=sup).text
         if ch is None:  # an unconnected device buffer: the page passes straight through
             self._arcs(pid, [p_in], self._trans(N.transition(*pb, 1, sup=sup), pid, buf.span,
                                                 f"{who} skips unconnected {buf.name}"), [p_out])
@@ -409,17 +445,16 @@ class HpnBuilder:
             c_ends = self.ends.get((ch.id, "consumer"), _Endpoint())
             chan = f"channel {ch.producer.qualified} -> {ch.consumer.qualified} ({ch.modes})"
             for which, members, initial, state in (
-                (1, p_ends.full + c_ends.full, False, "full"),
-                (2, p_ends.empty + c_ends.empty, True, "empty"),
+                (FusionName.FULL, p_ends.full + c_ends.full, False, "full"),
+                (FusionName.EMPTY, p_ends.empty + c_ends.empty, True, "empty"),
             ):
-                fid = N.fusion((j_of[prod.id], j_of[cons.id]), (_v(prod), _v(cons)),
+                key = N.fusion((j_of[prod.id], j_of[cons.id]), (_v(prod), _v(cons)),
                                (rho, kappa), which)
+                fid = key.text
                 self.h.fusions[fid] = FusionSet(fid, f"{chan}: {state}", ch.id, tuple(members),
-                                                initial, ch.producer.span)
+                                                initial, ch.producer.span, key)
                 for m in members:
-                    old = self.h.places[m]
-                    self.h.places[m] = Place(old.id, old.page, old.span, old.label, old.operation,
-                                             fid, initial)
+                    self.h.places[m] = replace(self.h.places[m], fusion=fid, initial=initial)
 
 
 def _v(x: Subsystem | Device) -> str:

@@ -10,6 +10,7 @@ from __future__ import annotations
 
 from dataclasses import dataclass, field
 from enum import Enum
+from functools import cached_property
 
 from rssm_dsl.source import Span
 
@@ -48,6 +49,7 @@ class FlatPage:
     parent: str | None
     kind: str                      # ir.PageKind value: system, agent, subsystem, device, ...
     owner: str                     # the system, agent, subsystem or device it belongs to
+    agent: str | None = None       # the agent it belongs to (a device net: its device's agent)
 
 
 @dataclass(frozen=True, slots=True)
@@ -77,17 +79,40 @@ class FlatNet:
     subsystems: tuple[str, ...] = field(default=())  # qualified names, for progress checks
     pages: tuple[FlatPage, ...] = field(default=())   # the page hierarchy, parents first
 
+    # lookups, each built on first use (the net is immutable)
+    @cached_property
+    def place_index(self) -> dict[str, int]:
+        """Place name -> index."""
+        return {p.name: p.index for p in self.places}
+
+    @cached_property
+    def transition_index(self) -> dict[str, int]:
+        """Transition name -> index."""
+        return {t.name: t.index for t in self.transitions}
+
+    @cached_property
+    def consumers(self) -> tuple[tuple[int, ...], ...]:
+        """Per place, the transitions that take its token (it is in their pre-set), in order."""
+        out: list[list[int]] = [[] for _ in self.places]
+        for t in self.transitions:
+            for p in t.pre:
+                out[p].append(t.index)
+        return tuple(map(tuple, out))
+
+    @cached_property
+    def producers(self) -> tuple[tuple[int, ...], ...]:
+        """Per place, the transitions that put a token into it (post-set), in order."""
+        out: list[list[int]] = [[] for _ in self.places]
+        for t in self.transitions:
+            for p in t.post:
+                out[p].append(t.index)
+        return tuple(map(tuple, out))
+
     def place(self, name: str) -> FlatPlace:
-        for p in self.places:
-            if p.name == name:
-                return p
-        raise KeyError(name)
+        return self.places[self.place_index[name]]
 
     def transition(self, name: str) -> FlatTransition:
-        for t in self.transitions:
-            if t.name == name:
-                return t
-        raise KeyError(name)
+        return self.transitions[self.transition_index[name]]
 
     def incidence(self) -> list[list[int]]:
         """Incidence matrix C[p][t] = post - pre."""

@@ -6,7 +6,7 @@ is left out. Conditions on data become free choices for the verifier."""
 from __future__ import annotations
 
 from rssm_dsl.hpn.flat import FlatNet, FlatPage, FlatPlace, FlatTransition
-from rssm_dsl.hpn.ir import HPN, PageKind
+from rssm_dsl.hpn.ir import HPN, Page, PageKind
 
 
 def _subsystem_of(hpn: HPN, page: str) -> tuple[str | None, str | None]:
@@ -80,7 +80,14 @@ def flatten(hpn: HPN) -> FlatNet:
             depth[pid] = 0 if parent is None else level(parent) + 1
         return depth[pid]
 
-    hierarchy = tuple(FlatPage(pg.id, pg.parent, pg.kind.value, pg.owner)
+    # the agent of a page is the owner of the agent page P[j] of its scope's j
+    agents = {pg.key.scope.j: pg.owner for pg in hpn.pages.values()
+              if pg.kind is PageKind.AGENT and pg.key is not None}
+
+    def agent(pg: Page) -> str | None:
+        return agents.get(pg.key.scope.j) if pg.key is not None and pg.key.scope.j else None
+
+    hierarchy = tuple(FlatPage(pg.id, pg.parent, pg.kind.value, pg.owner, agent(pg))
                       for pg in sorted(hpn.pages.values(), key=lambda pg: (level(pg.id), pg.id)))
     return FlatNet(hpn.system, tuple(places), tuple(transitions), initial, final, subsystems,
                    hierarchy)

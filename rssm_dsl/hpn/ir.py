@@ -5,6 +5,16 @@ contains it, every page names its parent page (the net it appears in as a node) 
 own input and output places. Element ids are their names in the paper's notation, e.g.
 `p[1,lwr,move,rcv,2,in]`, `t[1,c,cw,4]`, `P^B[1,c,cw]`, so they are unique and readable.
 
+Every element the compiler builds also carries its name as data (`key`): a :class:`Name`
+holding the indices of the paper's notation by meaning (agent j, subsystem v, behaviour
+omega, partial function psi or snd/rcv, buffer index, and the element's own indices on its
+page); a fused place's name is a :class:`FusionName`. The printed id is derived from it
+(``str(key) == id``), so consumers read the parts and never parse id strings.
+
+Lookups go through :meth:`HPN.index`, built once in one pass over the tables and cached
+until a table changes: page -> its net (places, transitions, sub-pages, arcs), node -> arcs
+into and out of it, id -> element.
+
 Layers (paper II-IV): 1 system H, 2 agent H_j, 3 subsystem sH_{j,v}, 4 behaviour
 sH^B_{j,v,omega}, 5 action (sublayer 1: canonical decomposition / arrangement; sublayer 2:
 data availability / communication mode). Device nets close the net for verification and
@@ -13,8 +23,10 @@ simulation; they are not part of H.
 
 from __future__ import annotations
 
+from collections.abc import Iterable
 from dataclasses import dataclass, field
 from enum import Enum
+from typing import Any, ClassVar, NamedTuple, SupportsIndex, TypeVar
 
 from rssm_dsl.hpn.flat import Role
 from rssm_dsl.source import Span
@@ -42,6 +54,145 @@ LAYER: dict[PageKind, tuple[int, int]] = {
     PageKind.RECEIVE_BUFFER: (5, 2), PageKind.DEVICE: (0, 0),
 }
 
+
+# ---------------------------------------------------------------------- structured names
+
+Part = str | int
+"""One index of the paper's notation: a designator or name (`1`, `lwr`, `move`, `snd`,
+`in`, `op`) or a number (psi, a buffer index, a case, a step of the behaviour pattern)."""
+
+
+@dataclass(frozen=True, slots=True)
+class Scope:
+    """Where a page lies in the hierarchy, by the paper's indices (None: not that deep).
+
+    A page's index extends its parent's by the part its kind adds: an agent page adds j,
+    a subsystem page v, a behaviour page omega, a partial function page psi (`action`),
+    an arrangement page snd/rcv (`action`), a mode page the buffer's index k (rho or kappa);
+    a device net starts at (j, v); the transition function page P^f adds nothing."""
+
+    j: str | None = None            # agent a_j (its designator)
+    v: str | None = None            # subsystem or device of the agent
+    omega: str | None = None        # behaviour
+    action: Part | None = None      # psi (partial function) or "snd" / "rcv"
+    k: int | None = None            # buffer index of a mode page: rho (snd) / kappa (rcv)
+    parts: tuple[Part, ...] = field(init=False, repr=False, compare=False)
+    # the indices that are set, in the order they are printed
+
+    def __post_init__(self) -> None:
+        object.__setattr__(self, "parts", tuple(
+            x for x in (self.j, self.v, self.omega, self.action, self.k) if x is not None))
+
+    @property
+    def psi(self) -> int | None:
+        return self.action if isinstance(self.action, int) else None
+
+    @property
+    def verb(self) -> str | None:
+        """"snd" or "rcv" on communication pages, else None."""
+        return self.action if isinstance(self.action, str) else None
+
+    def below(self, kind: PageKind, added: tuple[Part, ...]) -> Scope:
+        """The scope of a page of ``kind`` whose index extends this one by ``added``."""
+        match kind, added:
+            case (PageKind.SYSTEM | PageKind.FUNCTION), ():
+                return self
+            case PageKind.AGENT, (str() as j,):
+                return Scope(j)
+            case PageKind.SUBSYSTEM, (str() as v,):
+                return Scope(self.j, v)
+            case PageKind.DEVICE, (str() as j, str() as v):
+                return Scope(j, v)
+            case PageKind.BEHAVIOUR, (str() as omega,):
+                return Scope(self.j, self.v, omega)
+            case PageKind.PARTIAL, (int() as psi,):
+                return Scope(self.j, self.v, self.omega, psi)
+            case (PageKind.SEND | PageKind.RECEIVE), (str() as verb,):
+                return Scope(self.j, self.v, self.omega, verb)
+            case (PageKind.SEND_BUFFER | PageKind.RECEIVE_BUFFER), (int() as k,):
+                return Scope(self.j, self.v, self.omega, self.action, k)
+        raise ValueError(f"a {kind.value} page cannot extend {self.parts} by {added}")
+
+
+SYSTEM_SCOPE = Scope()
+
+
+class Name(NamedTuple):
+    """The name of a page, place or transition in the paper's notation, by its parts.
+
+    ``parts`` are the indices as printed; ``scope`` is the page the element lies on (for a
+    page: the page itself) and reads the leading parts by meaning; ``local`` are the rest,
+    the element's own indices on its page. So `p[1,lwr,move,rcv,2,in]` lies in scope
+    j=1, v=lwr, omega=move, action=rcv, k=2 with local ("in",), and `t[1,c,cw,4]` in
+    j=1, v=c, omega=cw with local (4,). ``text`` is the printed id (also ``str(name)``):
+    symbol, superscript, then the indices in brackets; the system page is just `H`.
+
+    Make names with :meth:`of` (which prints them); the functions of
+    :mod:`rssm_dsl.hpn.names` make them at system scope (every index local), and the
+    builder gives a name its page's scope (:meth:`within`) when it makes the element."""
+
+    symbol: str                         # "p" place, "t" transition, "P" page, "H" system page
+    sup: str                            # superscript: "", "^B", "^f", "^E", "^R"
+    parts: tuple[Part, ...]
+    scope: Scope
+    text: str
+
+    @staticmethod
+    def of(symbol: str, sup: str = "", parts: tuple[Part, ...] = (),
+           scope: Scope = SYSTEM_SCOPE) -> Name:
+        lead = scope.parts
+        if lead and parts[:len(lead)] != lead:
+            raise ValueError(f"{parts} does not lie within {lead}")
+        text = "H" if symbol == "H" else f"{symbol}{sup}[{','.join(map(str, parts))}]"
+        return Name(symbol, sup, parts, scope, text)
+
+    def __str__(self) -> str:
+        return self.text
+
+    @property
+    def local(self) -> tuple[Part, ...]:
+        """The indices after the scope's: the element's own on its page."""
+        return self.parts[len(self.scope.parts):]
+
+    def within(self, scope: Scope) -> Name:
+        """This name read in ``scope``, whose indices must be its leading parts."""
+        if self.scope is scope:
+            return self
+        lead = scope.parts
+        if self.parts[:len(lead)] != lead:
+            raise ValueError(f"{self.text} does not lie within {lead}")
+        return tuple.__new__(Name, (self.symbol, self.sup, self.parts, scope, self.text))
+
+
+@dataclass(frozen=True, slots=True)
+class FusionName:
+    """The fused place of a channel, p^fusion[(j,j'),(v,h),(snd,rcv),(rho,kappa),which]:
+    producer and consumer agent, subsystem (or `E.h` / `R.l` for a device), buffer index,
+    and which of the channel's two places it is (1 full: data not yet taken; 2 empty)."""
+
+    FULL: ClassVar[int] = 1
+    EMPTY: ClassVar[int] = 2
+
+    agents: tuple[str, str]
+    subsystems: tuple[str, str]
+    indices: tuple[int, int]
+    which: int
+    text: str = field(init=False, repr=False, compare=False)
+
+    def __post_init__(self) -> None:
+        a, s, i = self.agents, self.subsystems, self.indices
+        object.__setattr__(self, "text", f"p^fusion[({a[0]},{a[1]}),({s[0]},{s[1]}),"
+                                         f"(snd,rcv),({i[0]},{i[1]}),{self.which}]")
+
+    def __str__(self) -> str:
+        return self.text
+
+    @property
+    def full(self) -> bool:
+        return self.which == FusionName.FULL
+
+
+# ---------------------------------------------------------------------- elements
 
 class OpKind(str, Enum):
     INCREMENT = "increment"    # O_{j,v,omega,2}: i := i + 1
@@ -94,6 +245,7 @@ class Page:
     label: str
     owner: str                         # system / agent / subsystem id the page belongs to
     behaviour: str | None = None
+    key: Name | None = None            # the id by its parts (None only in hand-made nets)
 
     @property
     def layer(self) -> int:
@@ -113,6 +265,7 @@ class Place:
     operation: Operation | None = None
     fusion: str | None = None          # id of the fusion set it belongs to
     initial: bool = False
+    key: Name | None = None            # the id by its parts (None only in hand-made nets)
 
 
 @dataclass(frozen=True, slots=True)
@@ -123,6 +276,7 @@ class Transition:
     label: str
     role: Role = Role.STRUCTURE
     condition: Condition | None = None
+    key: Name | None = None            # the id by its parts (None only in hand-made nets)
 
 
 @dataclass(frozen=True, slots=True)
@@ -142,30 +296,243 @@ class FusionSet:
     places: tuple[str, ...]
     initial: bool
     span: Span
+    key: FusionName | None = None      # the id by its parts (None only in hand-made nets)
+
+
+Element = Page | Place | Transition | FusionSet
+
+
+# ---------------------------------------------------------------------- tables that count changes
+
+_V = TypeVar("_V")
+_T = TypeVar("_T")
+
+
+class Table(dict[str, _V]):
+    """A dict of IR elements by id that counts its changes, so that :meth:`HPN.index` knows
+    when its cached index is out of date. Reading is a plain dict's."""
+
+    changes: int = 0
+
+    def __setitem__(self, key: str, value: _V) -> None:
+        self.changes += 1
+        dict.__setitem__(self, key, value)
+
+    def __delitem__(self, key: str) -> None:
+        self.changes += 1
+        super().__delitem__(key)
+
+    def __ior__(self, other: Any) -> Table[_V]:  # type: ignore[override,misc]
+        self.changes += 1
+        super().__ior__(other)
+        return self
+
+    def clear(self) -> None:
+        self.changes += 1
+        super().clear()
+
+    def pop(self, *args: Any) -> Any:  # type: ignore[override]
+        self.changes += 1
+        return super().pop(*args)
+
+    def popitem(self) -> tuple[str, _V]:
+        self.changes += 1
+        return super().popitem()
+
+    def setdefault(self, key: str, default: Any = None) -> Any:  # type: ignore[override]
+        self.changes += 1
+        return super().setdefault(key, default)
+
+    def update(self, *args: Any, **kwargs: Any) -> None:  # type: ignore[override]
+        self.changes += 1
+        super().update(*args, **kwargs)
+
+
+class TrackedList(list[_T]):
+    """A list that counts its changes (see :class:`Table`)."""
+
+    changes: int = 0
+
+    def __setitem__(self, index: Any, value: Any) -> None:  # type: ignore[override]
+        self.changes += 1
+        super().__setitem__(index, value)
+
+    def __delitem__(self, index: SupportsIndex | slice) -> None:
+        self.changes += 1
+        super().__delitem__(index)
+
+    def __iadd__(self, other: Iterable[_T]) -> TrackedList[_T]:  # type: ignore[override,misc]
+        self.changes += 1
+        super().__iadd__(other)
+        return self
+
+    def __imul__(self, n: SupportsIndex) -> TrackedList[_T]:  # type: ignore[override,misc]
+        self.changes += 1
+        super().__imul__(n)
+        return self
+
+    def append(self, value: _T) -> None:
+        self.changes += 1
+        list.append(self, value)
+
+    def extend(self, values: Iterable[_T]) -> None:
+        self.changes += 1
+        super().extend(values)
+
+    def insert(self, index: SupportsIndex, value: _T) -> None:
+        self.changes += 1
+        super().insert(index, value)
+
+    def remove(self, value: _T) -> None:
+        self.changes += 1
+        super().remove(value)
+
+    def pop(self, index: SupportsIndex = -1) -> _T:
+        self.changes += 1
+        return super().pop(index)
+
+    def clear(self) -> None:
+        self.changes += 1
+        super().clear()
+
+    def sort(self, *args: Any, **kwargs: Any) -> None:
+        self.changes += 1
+        super().sort(*args, **kwargs)
+
+    def reverse(self) -> None:
+        self.changes += 1
+        super().reverse()
+
+
+# ---------------------------------------------------------------------- the index
+
+@dataclass(frozen=True, slots=True)
+class PageNet:
+    """The net of one page: its places, transitions, sub-pages (as nodes) and arcs, each in
+    the order of the IR's tables."""
+
+    places: tuple[Place, ...] = ()
+    transitions: tuple[Transition, ...] = ()
+    children: tuple[Page, ...] = ()
+    arcs: tuple[Arc, ...] = ()
+
+
+_EMPTY_NET = PageNet()
+
+
+@dataclass(frozen=True, slots=True)
+class HpnIndex:
+    """Lookups over one state of an HPN's tables, built in one pass (see :meth:`HPN.index`)."""
+
+    nets: dict[str, PageNet]                    # page id -> its net
+    roots: tuple[Page, ...]                     # pages without a parent, in table order
+    arcs_in: dict[str, tuple[Arc, ...]]         # node id -> arcs into it
+    arcs_out: dict[str, tuple[Arc, ...]]        # node id -> arcs out of it
+    elements: dict[str, Element]                # id -> page, place, transition or fusion set
+
+    def net(self, page: str) -> PageNet:
+        """The net of a page (empty for an unknown page)."""
+        return self.nets.get(page, _EMPTY_NET)
+
+    def children(self, page: str) -> tuple[Page, ...]:
+        return self.nets.get(page, _EMPTY_NET).children
+
+    def into(self, node: str) -> tuple[Arc, ...]:
+        """Arcs into a place, transition or page node."""
+        return self.arcs_in.get(node, ())
+
+    def out_of(self, node: str) -> tuple[Arc, ...]:
+        """Arcs out of a place, transition or page node."""
+        return self.arcs_out.get(node, ())
+
+    def element(self, id: str) -> Element | None:
+        return self.elements.get(id)
+
+    @staticmethod
+    def build(hpn: HPN) -> HpnIndex:
+        places: dict[str, list[Place]] = {}
+        transitions: dict[str, list[Transition]] = {}
+        children: dict[str, list[Page]] = {}
+        arcs: dict[str, list[Arc]] = {}
+        arcs_in: dict[str, list[Arc]] = {}
+        arcs_out: dict[str, list[Arc]] = {}
+        roots: list[Page] = []
+        for pg in hpn.pages.values():
+            if pg.parent is None:
+                roots.append(pg)
+            else:
+                children.setdefault(pg.parent, []).append(pg)
+        for pl in hpn.places.values():
+            places.setdefault(pl.page, []).append(pl)
+        for tr in hpn.transitions.values():
+            transitions.setdefault(tr.page, []).append(tr)
+        for a in hpn.arcs:
+            arcs.setdefault(a.page, []).append(a)
+            arcs_out.setdefault(a.source, []).append(a)
+            arcs_in.setdefault(a.target, []).append(a)
+        nets = {pid: PageNet(tuple(places.get(pid, ())), tuple(transitions.get(pid, ())),
+                             tuple(children.get(pid, ())), tuple(arcs.get(pid, ())))
+                for pid in {*hpn.pages, *places, *transitions, *children, *arcs}}
+        elements: dict[str, Element] = {}
+        for table in (hpn.fusions, hpn.pages, hpn.transitions, hpn.places):
+            elements.update(table)
+        return HpnIndex(nets, tuple(roots), {n: tuple(v) for n, v in arcs_in.items()},
+                        {n: tuple(v) for n, v in arcs_out.items()}, elements)
+
+
+# ---------------------------------------------------------------------- the HPN
+
+_TABLES = frozenset({"pages", "places", "transitions", "fusions"})
+_LISTS = frozenset({"arcs", "devices"})
 
 
 @dataclass
 class HPN:
     system: str
     root: str                                       # id of the system page H
-    pages: dict[str, Page] = field(default_factory=dict)
-    places: dict[str, Place] = field(default_factory=dict)
-    transitions: dict[str, Transition] = field(default_factory=dict)
-    arcs: list[Arc] = field(default_factory=list)
-    fusions: dict[str, FusionSet] = field(default_factory=dict)
-    devices: list[str] = field(default_factory=list)  # ids of device pages (no parent)
+    pages: dict[str, Page] = field(default_factory=Table)
+    places: dict[str, Place] = field(default_factory=Table)
+    transitions: dict[str, Transition] = field(default_factory=Table)
+    arcs: list[Arc] = field(default_factory=TrackedList)
+    fusions: dict[str, FusionSet] = field(default_factory=Table)
+    devices: list[str] = field(default_factory=TrackedList)  # ids of device pages (no parent)
+    _index: tuple[tuple[int, ...], HpnIndex] | None = field(
+        default=None, init=False, repr=False, compare=False)
+
+    def __setattr__(self, name: str, value: Any) -> None:
+        # tables assigned whole (also by __init__) become tables that count their changes,
+        # and make the index out of date, as a new root does
+        if name in _TABLES and not isinstance(value, Table):
+            value = Table(value)
+        elif name in _LISTS and not isinstance(value, TrackedList):
+            value = TrackedList(value)
+        object.__setattr__(self, name, value)
+        if name in _TABLES or name in _LISTS or name == "root":
+            object.__setattr__(self, "_index", None)
+
+    def _stamp(self) -> tuple[int, ...]:
+        tables = (self.pages, self.places, self.transitions, self.arcs, self.fusions)
+        return tuple(getattr(t, "changes", -1) for t in tables)
+
+    def index(self) -> HpnIndex:
+        """The lookups of the net as it is now: built on first use, kept until a table
+        changes (an element added, replaced or removed) or is replaced, or the root changes."""
+        stamp = self._stamp()
+        if self._index is None or self._index[0] != stamp:
+            self._index = (stamp, HpnIndex.build(self))
+        return self._index[1]
+
+    def element(self, id: str) -> Element | None:
+        """The page, place, transition or fusion set with this id."""
+        return self.index().element(id)
 
     def children(self, page: str) -> list[Page]:
-        return [p for p in self.pages.values() if p.parent == page]
+        return list(self.index().children(page))
 
     def contents(self, page: str) -> tuple[list[Place], list[Transition], list[Page], list[Arc]]:
         """The net of one page: its places, transitions, sub-pages (as nodes) and arcs."""
-        return (
-            [p for p in self.places.values() if p.page == page],
-            [t for t in self.transitions.values() if t.page == page],
-            self.children(page),
-            [a for a in self.arcs if a.page == page],
-        )
+        net = self.index().net(page)
+        return list(net.places), list(net.transitions), list(net.children), list(net.arcs)
 
     def node_page(self, node: str) -> str | None:
         """The page whose net contains a node (place, transition, or sub-page)."""

@@ -72,7 +72,8 @@ def _full_places(rt: Runtime) -> dict[str, int]:
     """Flat index of the `full` fused place of each channel."""
     out: dict[str, int] = {}
     for p in rt.net.places:
-        if p.channel is not None and p.name in rt.hpn.fusions and p.name.endswith(",1]"):
+        fs = rt.hpn.fusions.get(p.name)
+        if p.channel is not None and fs is not None and fs.key is not None and fs.key.full:
             out[p.channel] = p.index
     return out
 

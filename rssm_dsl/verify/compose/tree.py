@@ -38,53 +38,12 @@ class Node:
     last: int = 0
 
 
+_Info = list[tuple[str, str, str, int | None]]     # per node: (name, kind, owner, parent)
+
+
 def page_tree(net: FlatNet, nb: NetBits) -> list[Node]:
     """The nodes, root first, in pre-order; pages without places below them are left out."""
-    if net.pages:
-        ids = {pg.id: k for k, pg in enumerate(net.pages)}
-        root = next((k for k, pg in enumerate(net.pages) if pg.kind == "system"), 0)
-        agents = {pg.owner: k for k, pg in enumerate(net.pages) if pg.kind == "agent"}
-
-        def parent_of(k: int) -> int | None:
-            """The page's parent; a device net (a root of its own) hangs under its agent."""
-            pg = net.pages[k]
-            if pg.parent is not None:
-                return ids[pg.parent]
-            return None if k == root else agents.get(pg.owner.split(".")[0], root)
-
-        info = [(pg.id, pg.kind, pg.owner, parent_of(k)) for k, pg in enumerate(net.pages)]
-        masks = [0] * len(info)
-        fusion = []
-        for p in net.places:
-            if is_fusion(net, p.index):
-                fusion.append(p.index)
-            else:
-                masks[ids.get(p.page or "", root)] |= 1 << p.index
-        # a channel's fusion places: one component of their own under the lowest page
-        # holding both ends (together, so that the channel's places constrain each other)
-        channels: dict[str, list[int]] = {}
-        for q in fusion:
-            channels.setdefault(net.places[q].channel or "", []).append(q)
-        for channel, places in channels.items():
-            ends = {page for q in places for t in bits(nb.consumers[q] | nb.producers[q])
-                    for page in _pages_of(net, nb, t, ids, root)}
-            info.append((channel, "channel", channel, _lowest_common(info, ends, root)))
-            masks.append(sum(1 << q for q in places))
-    else:
-        subs = sorted({p.subsystem for p in net.places if p.subsystem is not None})
-        chans = sorted({p.channel or "" for p in net.places if is_fusion(net, p.index)})
-        info = [("net", "system", net.system, None)]
-        info += [(s, "subsystem", s, 0) for s in subs]
-        info += [(c, "channel", c, 0) for c in chans]
-        masks = [0] * len(info)
-        for p in net.places:
-            if p.subsystem is not None:
-                masks[subs.index(p.subsystem) + 1] |= 1 << p.index
-            elif p.channel is not None:
-                masks[chans.index(p.channel) + 1 + len(subs)] |= 1 << p.index
-            else:
-                masks[0] |= 1 << p.index
-        root = 0
+    info, masks, root = _pages(net, nb) if net.pages else _fallback(net)
     kids: list[list[int]] = [[] for _ in info]
     for k, (_, _, _, parent) in enumerate(info):
         if parent is not None:
@@ -112,6 +71,60 @@ def page_tree(net: FlatNet, nb: NetBits) -> list[Node]:
     return nodes
 
 
+def _pages(net: FlatNet, nb: NetBits) -> tuple[_Info, list[int], int]:
+    """The HPN's pages and the channels' components (see the module docstring), the places
+    of each, and the root."""
+    ids = {pg.id: k for k, pg in enumerate(net.pages)}
+    root = next((k for k, pg in enumerate(net.pages) if pg.kind == "system"), 0)
+    agents = {pg.owner: k for k, pg in enumerate(net.pages) if pg.kind == "agent"}
+
+    def parent_of(k: int) -> int | None:
+        """The page's parent; a device net (a root of its own) hangs under its agent."""
+        pg = net.pages[k]
+        if pg.parent is not None:
+            return ids[pg.parent]
+        return None if k == root else agents.get(pg.agent or "", root)
+
+    info: _Info = [(pg.id, pg.kind, pg.owner, parent_of(k)) for k, pg in enumerate(net.pages)]
+    masks = [0] * len(info)
+    fusion = []
+    for p in net.places:
+        if is_fusion(net, p.index):
+            fusion.append(p.index)
+        else:
+            masks[ids.get(p.page or "", root)] |= 1 << p.index
+    # a channel's fusion places: one component of their own under the lowest page
+    # holding both ends (together, so that the channel's places constrain each other)
+    channels: dict[str, list[int]] = {}
+    for q in fusion:
+        channels.setdefault(net.places[q].channel or "", []).append(q)
+    for channel, places in channels.items():
+        ends = {page for q in places for t in bits(nb.consumers[q] | nb.producers[q])
+                for page in _pages_of(net, nb, t, ids, root)}
+        info.append((channel, "channel", channel, _lowest_common(info, ends, root)))
+        masks.append(sum(1 << q for q in places))
+    return info, masks, root
+
+
+def _fallback(net: FlatNet) -> tuple[_Info, list[int], int]:
+    """Without page information: one node per subsystem and one per channel under a root
+    holding the rest."""
+    subs = sorted({p.subsystem for p in net.places if p.subsystem is not None})
+    chans = sorted({p.channel or "" for p in net.places if is_fusion(net, p.index)})
+    info: _Info = [("net", "system", net.system, None)]
+    info += [(s, "subsystem", s, 0) for s in subs]
+    info += [(c, "channel", c, 0) for c in chans]
+    masks = [0] * len(info)
+    for p in net.places:
+        if p.subsystem is not None:
+            masks[subs.index(p.subsystem) + 1] |= 1 << p.index
+        elif p.channel is not None:
+            masks[chans.index(p.channel) + 1 + len(subs)] |= 1 << p.index
+        else:
+            masks[0] |= 1 << p.index
+    return info, masks, 0
+
+
 def is_fusion(net: FlatNet, p: int) -> bool:
     """A channel's fusion place (shared by two subsystems), not a place of one page."""
     place = net.places[p]
@@ -123,8 +136,7 @@ def _pages_of(net: FlatNet, nb: NetBits, t: int, ids: dict[str, int], root: int)
             if not is_fusion(net, p)}
 
 
-def _lowest_common(info: list[tuple[str, str, str, int | None]], pages: set[int],
-                   root: int) -> int:
+def _lowest_common(info: _Info, pages: set[int], root: int) -> int:
     """The lowest page that has all of ``pages`` in its subtree."""
     common: list[int] | None = None
     for pg in pages:
