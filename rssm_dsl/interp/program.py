@@ -323,9 +323,9 @@ class _Builder:
             p_in, p_out = index[page.in_place], index[page.out_place]
             rows: dict[int, tuple[int, int, Op | None, int]] = {}
             ok = True
-            for t in self.hpn.transitions.values():
+            for t in self.hpn.index().net(page.id).transitions:
                 cond = t.condition
-                if t.page != page.id or cond is None or cond.kind is not CondKind.CASE:
+                if cond is None or cond.kind is not CondKind.CASE:
                     continue
                 assert cond.new is not None
                 mask = sum(1 << k for k, v in enumerate(cond.new) if v)
@@ -334,7 +334,8 @@ class _Builder:
                     ok = False
                     break
                 place = ft.post[0]
-                done = [u for u in net.transitions if u.pre == (place,)]
+                done = [net.transitions[u] for u in net.consumers[place]
+                        if net.transitions[u].pre == (place,)]
                 if len(done) != 1 or done[0].post != (p_out,) or rt.effects[ft.index] \
                         or rt.effects[done[0].index]:
                     ok = False
