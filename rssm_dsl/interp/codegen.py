@@ -17,6 +17,11 @@ compiling Python is the slow part; compiled sources are kept for the next run of
 process); the number of firings of every macro step is known upfront. The generated source
 contains only integers and fixed identifiers (no text of the specification); operations and
 effects are reached through the namespace the code is executed in.
+
+The code is generated from the structure of :class:`rssm_core.firing.Net` (``game.rule``: the
+pre-sets, post-sets and consumers) and follows its rule: empty the input places, then for each
+output place report an unsafe firing if it is still marked, and mark it. ``tests/core``
+checks the compiled functions against the rule on random safe and unsafe nets.
 """
 
 from __future__ import annotations
@@ -51,7 +56,7 @@ class FiringCode:
             "_discard": game.enabled.discard, "_local": local.append, "_failure": failure,
             "_unsafe": unsafe,
         }
-        n = len(game.pre)
+        n = game.rule.ntransitions
         self.fire: list[Action] = [self._lazy(self.fire_table, t, self._firing)
                                    for t in range(n)]
         self.macros: list[Action] | None = None
@@ -96,7 +101,8 @@ class FiringCode:
 
     # ------------------------------------------------------------------ pieces of code
     def _consume(self, t: int, body: list[str]) -> None:
-        pre, consumers, eager = self.game.pre, self.game.consumers, self.eager
+        rule, eager = self.game.rule, self.eager
+        pre, consumers = rule.pre, rule.consumers
         for p in pre[t]:
             body.append(f"tokens[{p}] = 0")
             for u in consumers[p]:
@@ -125,7 +131,8 @@ class FiringCode:
 
     def _mark(self, p: int, body: list[str]) -> None:
         """The token of ``p`` is put and the transitions reading ``p`` are updated."""
-        pre, consumers, eager = self.game.pre, self.game.consumers, self.eager
+        rule, eager = self.game.rule, self.eager
+        pre, consumers = rule.pre, rule.consumers
         body.append(f"tokens[{p}] = 1")
         for u in consumers[p]:
             enable = f"_local({u})" if eager[u] else f"_add({u})"
@@ -142,7 +149,7 @@ class FiringCode:
         body: list[str] = []
         self._consume(t, body)
         self._effect(t, body)
-        for p in self.game.post[t]:
+        for p in self.game.rule.post[t]:
             self._arrive(str(t), p, body)
             self._mark(p, body)
         return body
@@ -160,7 +167,8 @@ class FiringCode:
         effect and operation happens in the order a step-by-step run with local steps first
         would make them (the chain commutes with everything outside it), so a macro step is
         only a faster way to make the same firings. The count is the same on every path."""
-        pre, post, consumers = self.game.pre, self.game.post, self.game.consumers
+        rule = self.game.rule
+        pre, post, consumers = rule.pre, rule.post, rule.consumers
         eager, guards, gates = self.eager, self.guards, self.gates
         body: list[str] = []
         virtual: dict[int, None] = {}      # marked within the macro, not yet consumed

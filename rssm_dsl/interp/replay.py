@@ -7,14 +7,17 @@ Accepted files (told apart by their content):
 * one counterexample object: ``{"kind": "deadlock" | "unsafe" | "progress", "steps": [...],
   "marking": [...], ...}`` as in the report (``rssm_dsl.verify.report.Counterexample``);
 * a list of transitions;
-* a trace of `rssmc simulate` (JSON lines): its ``fire`` events.
+* a trace of `rssmc simulate` (JSON lines): its ``fire`` events, read by the one trace
+  reader (:mod:`rssm_core.trace`; a malformed line is an error naming the line).
 
 Steps name transitions in the paper's notation, as strings or as objects with ``"name"`` or
 ``"transition"``. The replay forces exactly these firings, whatever the data says (the
 verifier treats conditions on data as free choices; a forced firing whose condition does not
 hold in the simulated data is marked ``"forced": true`` in the trace), with the operations
 run so that the values can be seen. A loss of progress is replayed up to its cycle, then the
-cycle twice. The replay then checks that the simulation ends where the verifier said.
+cycle twice. The replay then checks that the simulation ends where the verifier said, judged
+by the firing rule of :mod:`rssm_core.firing` (a deadlock: no transition enabled in the
+marking reached; an unsafe firing: the last step double-marks a place).
 """
 
 from __future__ import annotations
@@ -24,6 +27,8 @@ from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any
 
+from rssm_core.firing import Net, NotEnabled
+from rssm_core.trace import TraceFormatError, parse_trace
 from rssm_dsl.diagnostics import Diagnostic
 from rssm_dsl.hpn.flat import FlatNet, Role
 from rssm_dsl.interp.scheduler import RunResult, Simulator
@@ -105,24 +110,18 @@ def load_counterexample(path: Path) -> Counterexample:
         data = json.loads(text)
     except json.JSONDecodeError:
         data = None
-        steps: list[str] = []
-        for n, line in enumerate(text.splitlines(), start=1):
-            if not line.strip():
-                continue
-            try:
-                event = json.loads(line)
-            except json.JSONDecodeError as e:
-                raise ReplayFileError(f"{path}:{n}: not JSON ({e.msg})") from e
-            if isinstance(event, dict) and event.get("event") == "fire":
-                steps.append(str(event.get("transition")))
+    if data is None or (isinstance(data, dict) and "event" in data):   # JSON lines
+        try:
+            trace = parse_trace(text.split("\n"), str(path))
+        except TraceFormatError as e:
+            raise ReplayFileError(str(e)) from None
+        steps = tuple(f.transition for f in trace.fires())
         if not steps:
-            raise ReplayFileError(f"{path} holds no firing sequence") from None
-        return Counterexample("trace", tuple(steps))
+            raise ReplayFileError(f"{path} holds no firing sequence")
+        return Counterexample("trace", steps)
     if isinstance(data, list):
         return Counterexample("trace", _names(data, "the list"))
     if isinstance(data, dict):
-        if data.get("event") == "start":          # a one-line trace
-            raise ReplayFileError(f"{path} holds no firing sequence")
         return _from_object(data)
     raise ReplayFileError(f"{path} holds no firing sequence")
 
@@ -161,13 +160,24 @@ def labels(net: FlatNet, marking: frozenset[int]) -> tuple[str, ...]:
     return tuple(net.places[p].label or net.places[p].name for p in sorted(marking))
 
 
+def _last_step_unsafe(rule: Net, initial: frozenset[int], steps: list[int]) -> bool:
+    """By the firing rule: the steps fire from ``initial``, safely but for the last one."""
+    try:
+        firings = rule.run(initial, steps)
+    except NotEnabled:
+        return False
+    return bool(firings) and all(f.safe for f in firings[:-1]) and not firings[-1].safe
+
+
 def judge(cx: Counterexample, forced: list[int], result: RunResult,
           sim: Simulator) -> ReplayVerdict:
     """Does the replayed run end where the verifier said?"""
     net = sim.rt.net
+    rule = sim.game.rule
     codes = {d.code for d in result.diagnostics}
     if result.reason == "error":
-        if cx.kind == "unsafe" and "E807" in codes and result.steps == len(forced):
+        if (cx.kind == "unsafe" and "E807" in codes and result.steps == len(forced)
+                and _last_step_unsafe(rule, net.initial, forced)):
             return ReplayVerdict(True, "unsafe firing reproduced: " + result.message,
                                  result.diagnostics)
         return ReplayVerdict(False, f"the replay stopped at step {result.steps}: "
@@ -177,12 +187,14 @@ def judge(cx: Counterexample, forced: list[int], result: RunResult,
                              f"{result.message}", result.diagnostics)
     n = len(forced)
     if cx.kind == "deadlock":
-        if sim.game.enabled or sim.game.tokens[sim.final]:
+        marking = sim.game.marking()
+        enabled = rule.enabled_set(marking)
+        if enabled or sim.final in marking:
             return ReplayVerdict(False, f"after the {n} firings of the counterexample "
-                                 f"{len(sim.game.enabled)} transition(s) are still enabled: "
+                                 f"{len(enabled)} transition(s) are still enabled: "
                                  "no deadlock here")
         diag = sim.deadlock_diagnostic()
-        reached = labels(net, sim.game.marking())
+        reached = labels(net, marking)
         note = ""
         if cx.marking and tuple(sorted(cx.marking)) != tuple(sorted(reached)):
             note = " (the marking differs from the verifier's: " + ", ".join(reached) + ")"

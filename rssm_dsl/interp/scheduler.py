@@ -27,6 +27,7 @@ from dataclasses import dataclass, field
 from heapq import heappop, heappush
 from typing import Any
 
+from rssm_core.trace import SOURCE_INTERPRETER, start_event
 from rssm_dsl.diagnostics import Diagnostic, Related
 from rssm_dsl.hpn.flat import Role
 from rssm_dsl.interp.clock import SimClock
@@ -238,14 +239,15 @@ class Simulator:
     def blocked(self) -> list[Blocked]:
         """For each marked place owned by a subsystem or device, what its consumers miss."""
         net, game = self.rt.net, self.game
+        rule, marking = game.rule, game.marking()
         out: list[Blocked] = []
-        for p, v in enumerate(game.tokens):
+        for p in sorted(marking):
             fp = net.places[p]
-            if not v or fp.subsystem is None or not game.consumers[p]:
+            if fp.subsystem is None or not rule.consumers[p]:
                 continue
             needs: list[tuple[str, list[tuple[str, str]]]] = []
-            for t in game.consumers[p]:
-                missing = [net.places[q] for q in net.transitions[t].pre if not game.tokens[q]]
+            for t in rule.consumers[p]:
+                missing = [net.places[q] for q in rule.missing(marking, t)]
                 needs.append((net.transitions[t].name, [(q.name, q.label) for q in missing]))
             out.append(Blocked(fp.subsystem, fp.name, fp.label, needs))
         return out
@@ -275,9 +277,9 @@ class Simulator:
         start = time.monotonic()
         self._next_progress = start + self.opt.progress_interval
         rt = self.rt
-        rt.emit({"event": "start", "system": rt.system.name, "mode": self.opt.mode,
-                 "seed": self.opt.seed, "places": len(rt.net.places),
-                 "transitions": len(rt.net.transitions), **self.opt.trace_info})
+        rt.emit(start_event(SOURCE_INTERPRETER, system=rt.system.name, mode=self.opt.mode,
+                            seed=self.opt.seed, places=len(rt.net.places),
+                            transitions=len(rt.net.transitions), **self.opt.trace_info))
         if self.opt.record_markings:
             self.markings.append(self.game.marking())
         steps = 0
@@ -332,152 +334,21 @@ class Simulator:
         return nxt
 
     def _run_deterministic(self) -> tuple[int, str, str]:
-        rt, game, opt = self.rt, self.game, self.opt
-        clock = rt.clock
-        assert isinstance(clock, SimClock)
-        gates, guards, fire = rt.gates, rt.guards, self.fire
-        missing, enabled, tokens = game.missing, game.enabled, game.tokens
-        rnd = random.Random(opt.seed).random
-        final = self.final
-        limit = opt.max_steps if opt.max_steps is not None else 1 << 62
-        until = None if opt.until is None else round(opt.until * 1e9)
-        forced = opt.forced
-        local = self.local
-        record = self.markings if opt.record_markings else None
-        tracer = rt.tracer
-        macros = self.macros if tracer is None and record is None else None
-        mlen = self.macro_len
-        eager = self.eager if opt.eager and forced is None else bytearray(len(self.eager))
-        steps = 0
-        next_look = PROGRESS_EVERY
-        instant, instant_steps = clock.ns, 0     # when simulated time last moved (E808)
-        timers: list[tuple[int, int]] = []      # (tick, local step waiting for it)
-        local.extend(sorted((u for u in enabled if eager[u]), reverse=True))
-        enabled.difference_update(local)         # local steps live on the stack and timers
+        loop = _Deterministic(self)
         try:
-            while True:
-                while local:                     # local steps first (see _local_steps)
-                    u = local.pop()
-                    if missing[u] != 0:
-                        continue
-                    gate = gates[u]
-                    if gate is not None and gate.next > clock.ns:
-                        heappush(timers, (gate.next, u))    # taken up again at its tick
-                        continue
-                    guard = guards[u]
-                    if guard is not None and not guard():
-                        continue
-                    if steps >= limit:
-                        local.append(u)
-                        return steps, "steps", f"stopped after {steps} firings"
-                    if gate is not None:
-                        gate.start(clock.ns)
-                    if steps >= next_look:       # the same look as below: local steps
-                        next_look = steps + PROGRESS_EVERY   # alone may spin at one instant
-                        rt.step = steps
-                        self._progress(steps)
-                        if clock.ns != instant:
-                            instant, instant_steps = clock.ns, steps
-                        elif steps - instant_steps > ZENO_FIRINGS:
-                            raise self._zeno(steps - instant_steps, clock.ns)
-                    if macros is not None and steps + mlen[u] <= limit:
-                        macros[u]()
-                        steps += mlen[u]
-                        if tokens[final]:
-                            return steps, "finished", FINISHED
-                        continue
-                    steps += 1
-                    if tracer is not None:
-                        rt.step = steps
-                        self._trace_fire(u)
-                    fire[u]()
-                    if record is not None:
-                        record.append(game.marking())
-                    if tokens[final]:
-                        return steps, "finished", FINISHED
-                if tokens[final]:
-                    return steps, "finished", FINISHED
-                if steps >= limit:
-                    return steps, "steps", f"stopped after {steps} firings"
-                now = clock.ns
-                was_forced = False
-                if forced is not None:
-                    if steps >= len(forced):
-                        return steps, "replayed", f"replayed {steps} firings"
-                    t = forced[steps]
-                    if t not in enabled:
-                        raise self._diverged(steps, t)
-                    gate = gates[t]
-                    if gate is not None and gate.next > now:
-                        clock.ns = now = gate.next
-                    guard = guards[t]
-                    was_forced = guard is not None and not guard()
-                    if was_forced:
-                        self.forced_count += 1
-                else:
-                    if steps >= next_look:
-                        next_look = steps + PROGRESS_EVERY
-                        rt.step = steps
-                        self._progress(steps)
-                        if now != instant:
-                            instant, instant_steps = now, steps
-                        elif steps - instant_steps > ZENO_FIRINGS:
-                            raise self._zeno(steps - instant_steps, now)
-                    active = []                  # enabled, due and condition true
-                    nxt = -1                     # the next tick of a gated enabled transition
-                    for u in enabled:
-                        gate = gates[u]
-                        if gate is not None:
-                            due = gate.next
-                            if due > now:
-                                if nxt < 0 or due < nxt:
-                                    nxt = due
-                                continue
-                        guard = guards[u]
-                        if guard is None or guard():
-                            active.append(u)
-                    if not active:
-                        if timers and (nxt < 0 or timers[0][0] < nxt):
-                            nxt = timers[0][0]
-                        if nxt < 0:
-                            rt.step = steps
-                            raise self._deadlock()
-                        if until is not None and nxt > until:
-                            clock.ns = until
-                            return steps, "until", f"reached t = {opt.until:g} s"
-                        clock.ns = nxt
-                        while timers and timers[0][0] <= nxt:
-                            local.append(heappop(timers)[1])
-                        continue
-                    if len(active) > 1:
-                        active.sort()
-                        t = active[int(rnd() * len(active))]
-                    else:
-                        t = active[0]
-                gate = gates[t]
-                if gate is not None:
-                    gate.start(now)
-                if macros is not None and steps + mlen[t] <= limit:
-                    macros[t]()
-                    steps += mlen[t]
-                    continue
-                steps += 1
-                if tracer is not None:
-                    rt.step = steps
-                    self._trace_fire(t, was_forced)
-                fire[t]()
-                if record is not None:
-                    record.append(game.marking())
+            return loop.run()
+        except _Finish as f:
+            return f.steps, f.reason, f.message
         except EvalError as e:
             raise _Stop("error", e.message, e.diagnostic()) from None
         finally:
-            rt.step = steps
-            game.recompute_enabled()
+            self.rt.step = loop.steps
+            self.game.recompute_enabled()
 
     def _diverged(self, k: int, t: int) -> _Stop:
         net, game = self.rt.net, self.game
         ft = net.transitions[t]
-        missing = [net.places[q] for q in ft.pre if not game.tokens[q]]
+        missing = [net.places[q] for q in game.rule.missing(game.marking(), t)]
         what = ", ".join(f"{q.name} ({q.label})" for q in missing) or "its input places"
         diag = Diagnostic("E806", f"step {k + 1} of the replay fires {ft.name}, which is not "
                           f"enabled: {what} hold no token", ft.span,
@@ -487,109 +358,307 @@ class Simulator:
 
     # ------------------------------------------------------------------ concurrent
     def _run_concurrent(self) -> tuple[int, str, str]:
-        rt, game, opt = self.rt, self.game, self.opt
-        clock = rt.clock
-        gates, effects, ops = rt.gates, rt.effects, rt.ops
-        rnd = random.Random(opt.seed).random
-        final = self.final
-        until = None if opt.until is None else round(opt.until * 1e9)
-        done: queue.SimpleQueue[tuple[int, BaseException | None]] = queue.SimpleQueue()
-        pending = 0
-        steps = 0
-        record = self.markings if opt.record_markings else None
-
-        def work(p: int, op: Callable[[], None]) -> None:
-            try:
-                op()
-            except BaseException as e:
-                done.put((p, e))
-                return
-            done.put((p, None))
-
-        def finish(p: int, err: BaseException | None) -> None:
-            nonlocal pending
-            pending -= 1
-            if err is not None:
-                if not isinstance(err, Exception):
-                    raise err
-                self._failure(p, err)
-            game.release(p)
-
-        pool = ThreadPoolExecutor(max_workers=max(1, opt.workers),
-                                  thread_name_prefix="rssm-op")
+        loop = _Concurrent(self)
         try:
-            while True:
-                while True:
-                    try:
-                        p, err = done.get_nowait()
-                    except queue.Empty:
-                        break
-                    finish(p, err)
-                if game.tokens[final] and pending == 0:
-                    return steps, "finished", FINISHED
-                if opt.max_steps is not None and steps >= opt.max_steps:
-                    return steps, "steps", f"stopped after {steps} firings"
-                now = clock.now()
-                if until is not None and now >= until:
-                    return steps, "until", f"reached t = {opt.until:g} s (wall clock)"
-                if steps % PROGRESS_EVERY == 0 and steps:
-                    self._progress(steps)
-                try:
-                    active = self._active(now)
-                except EvalError as e:
-                    raise _Stop("error", e.message, e.diagnostic()) from None
-                if active:
+            return loop.run()
+        finally:
+            loop.shutdown()
+
+
+class _Finish(Exception):
+    """The deterministic loop ends normally (limit, termination, time, end of a replay)."""
+
+    def __init__(self, steps: int, reason: str, message: str) -> None:
+        super().__init__(message)
+        self.steps, self.reason, self.message = steps, reason, message
+
+
+class _Deterministic:
+    """The deterministic mode's loop (see the module docstring): local steps first, then the
+    seeded choice among the active transitions, simulated time moved to the next tick when
+    nothing can fire. The state of the run lives in the attributes; the hot loop,
+    :meth:`run`, works on local variables only."""
+
+    __slots__ = ("clock", "enabled", "final", "fire", "forced", "game", "gates", "guards",
+                 "instant", "instant_steps", "limit", "local", "macros", "missing", "mlen",
+                 "next_look", "record", "rnd", "rt", "sim", "steps", "timers", "tokens",
+                 "tracer", "until", "was_forced")
+
+    def __init__(self, sim: Simulator) -> None:
+        rt, game, opt = sim.rt, sim.game, sim.opt
+        clock = rt.clock
+        assert isinstance(clock, SimClock)
+        self.sim, self.rt, self.game, self.clock = sim, rt, game, clock
+        self.gates, self.guards, self.fire = rt.gates, rt.guards, sim.fire
+        self.missing, self.enabled, self.tokens = game.missing, game.enabled, game.tokens
+        self.rnd = random.Random(opt.seed).random
+        self.final = sim.final
+        self.limit = opt.max_steps if opt.max_steps is not None else 1 << 62
+        self.until = None if opt.until is None else round(opt.until * 1e9)
+        self.forced = opt.forced
+        self.local = sim.local
+        self.record = sim.markings if opt.record_markings else None
+        self.tracer = rt.tracer
+        self.macros = sim.macros if self.tracer is None and self.record is None else None
+        self.mlen = sim.macro_len
+        self.steps = 0                   # firings so far, stored when the loop ends or raises
+        self.next_look = PROGRESS_EVERY                  # the next look at progress and time
+        self.instant, self.instant_steps = clock.ns, 0   # when simulated time last moved (E808)
+        self.timers: list[tuple[int, int]] = []         # (tick, local step waiting for it)
+        self.was_forced = False
+        eager = sim.eager if opt.eager and self.forced is None else bytearray(len(sim.eager))
+        self.local.extend(sorted((u for u in self.enabled if eager[u]), reverse=True))
+        self.enabled.difference_update(self.local)   # local steps live on the stack and timers
+
+    def run(self) -> tuple[int, str, str]:
+        """Fire until something ends the run (or raise :class:`_Finish` or :class:`_Stop`).
+        Each turn fires one transition: the local step on top of the stack (see
+        ``Simulator._local_steps``; one whose tick has not come waits in ``timers``, one that
+        is no longer enabled or whose condition does not hold is dropped), else one chosen
+        with the seeded generator among the enabled transitions that are due and whose
+        condition holds (when replaying: the next one of the sequence)."""
+        local, tokens, final, limit = self.local, self.tokens, self.final, self.limit
+        macros, mlen, enabled, gates, guards = (self.macros, self.mlen, self.enabled,
+                                                self.gates, self.guards)
+        clock, rnd, missing, timers = self.clock, self.rnd, self.missing, self.timers
+        replay = self.choose_forced if self.forced is not None else None
+        steps, next_look = 0, self.next_look
+        try:
+            while True:                          # the loop is hot: locals only
+                if tokens[final] or steps >= limit:
+                    return self.ended(steps)
+                if local:
+                    t = local.pop()
+                    if missing[t] != 0:
+                        continue
+                    gate = gates[t]
+                    if gate is not None and gate.next > clock.ns:
+                        heappush(timers, (gate.next, t))    # taken up again at its tick
+                        continue
+                    guard = guards[t]
+                    if guard is not None and not guard():
+                        continue
+                elif replay is not None:
+                    t = replay(steps)
+                    gate = gates[t]
+                else:
+                    now = clock.ns
+                    active = []                  # enabled, due and condition true
+                    for u in enabled:
+                        gate = gates[u]
+                        if gate is not None and gate.next > now:
+                            continue
+                        guard = guards[u]
+                        if guard is None or guard():
+                            active.append(u)
+                    if not active:
+                        self.advance(now, steps)  # to the next tick
+                        continue
                     active.sort()
                     t = active[int(rnd() * len(active))] if len(active) > 1 else active[0]
-                    steps += 1
-                    rt.step = steps
                     gate = gates[t]
-                    if gate is not None:
-                        gate.start(now)
-                    game.consume(t)
-                    if rt.tracer is not None:
-                        self._trace_fire(t)
-                    effect = effects[t]
-                    if effect is not None:
-                        try:
-                            effect()
-                        except EvalError as e:
-                            raise _Stop("error", e.message, e.diagnostic()) from None
-                    for p in game.post[t]:
-                        try:
-                            game.occupy(t, p)
-                        except UnsafeFiring as e:
-                            raise self._unsafe(e) from None
-                        op = ops[p]
-                        if op is None:
-                            game.release(p)
-                        else:
-                            pending += 1
-                            pool.submit(work, p, op)
-                    if record is not None:
-                        record.append(game.marking())
-                    continue
-                nxt = self._next_tick(now)
-                if nxt is None and pending == 0:
-                    if game.tokens[final]:
-                        continue
-                    raise self._deadlock()
-                timeout = None if nxt is None else max(0.0, (nxt - now) / 1e9)
-                if until is not None:
-                    left = max(0.0, (until - now) / 1e9)
-                    timeout = left if timeout is None else min(timeout, left)
-                try:
-                    p, err = done.get(timeout=timeout)
-                except queue.Empty:
-                    continue
-                finish(p, err)
+                if gate is not None:
+                    gate.start(clock.ns)
+                if steps >= next_look:           # local steps alone may spin at one instant
+                    self.look(steps)
+                    next_look = self.next_look
+                if macros is not None and steps + mlen[t] <= limit:
+                    macros[t]()
+                    steps += mlen[t]
+                else:
+                    steps += 1
+                    self.fire_one(t, self.was_forced, steps)
         finally:
-            deadline = time.monotonic() + 5.0
-            while pending > 0 and time.monotonic() < deadline:
-                try:
-                    p, _ = done.get(timeout=max(0.0, deadline - time.monotonic()))
-                except queue.Empty:
-                    break
-                pending -= 1
+            self.steps = steps
+
+    def ended(self, steps: int) -> tuple[int, str, str]:
+        """The run ends: the system finished, or the limit of firings is reached."""
+        if self.tokens[self.final]:
+            return steps, "finished", FINISHED
+        return steps, "steps", f"stopped after {steps} firings"
+
+    def look(self, steps: int) -> None:
+        """Every PROGRESS_EVERY firings: report progress; stop if time stands still (E808)."""
+        self.next_look = steps + PROGRESS_EVERY
+        self.rt.step = steps
+        self.sim._progress(steps)
+        now = self.clock.ns
+        if now != self.instant:
+            self.instant, self.instant_steps = now, steps
+        elif steps - self.instant_steps > ZENO_FIRINGS:
+            raise self.sim._zeno(steps - self.instant_steps, now)
+
+    def advance(self, now: int, steps: int) -> None:
+        """Nothing can fire at ``now``: move simulated time to the next tick of an enabled
+        transition or of a waiting local step, or end the run (deadlock, ``until``)."""
+        timers = self.timers
+        nxt = self.sim._next_tick(now)
+        if timers and (nxt is None or timers[0][0] < nxt):
+            nxt = timers[0][0]
+        if nxt is None:
+            self.rt.step = steps
+            raise self.sim._deadlock()
+        if self.until is not None and nxt > self.until:
+            self.clock.ns = self.until
+            raise _Finish(steps, "until", f"reached t = {self.sim.opt.until:g} s")
+        self.clock.ns = nxt
+        push = self.local.append
+        while timers and timers[0][0] <= nxt:
+            push(heappop(timers)[1])
+
+    def choose_forced(self, steps: int) -> int:
+        """Replay: the next transition of the forced sequence, whatever its condition says
+        (``was_forced`` when it does not hold); simulated time moves to its tick."""
+        forced = self.forced
+        assert forced is not None
+        if steps >= len(forced):
+            raise _Finish(steps, "replayed", f"replayed {steps} firings")
+        t = forced[steps]
+        if t not in self.enabled:
+            raise self.sim._diverged(steps, t)
+        now = self.clock.ns
+        gate = self.gates[t]
+        if gate is not None and gate.next > now:
+            self.clock.ns = gate.next
+        guard = self.guards[t]
+        self.was_forced = guard is not None and not guard()
+        if self.was_forced:
+            self.sim.forced_count += 1
+        return t
+
+    def fire_one(self, t: int, forced: bool, steps: int) -> None:
+        """Fire ``t`` alone, as firing ``steps``: traced and recorded if asked."""
+        if self.tracer is not None:
+            self.rt.step = steps
+            self.sim._trace_fire(t, forced)
+        self.fire[t]()
+        if self.record is not None:
+            self.record.append(self.game.marking())
+
+
+class _Concurrent:
+    """The concurrent mode's loop: the scheduler here, operations in a pool of worker threads;
+    a place's token becomes usable when its operation reports back on ``done``."""
+
+    def __init__(self, sim: Simulator) -> None:
+        self.sim, self.rt, self.game, self.opt = sim, sim.rt, sim.game, sim.opt
+        self.rnd = random.Random(self.opt.seed).random
+        self.until = None if self.opt.until is None else round(self.opt.until * 1e9)
+        self.done: queue.SimpleQueue[tuple[int, BaseException | None]] = queue.SimpleQueue()
+        self.pending = 0
+        self.steps = 0
+        self.record = sim.markings if self.opt.record_markings else None
+        self.pool = ThreadPoolExecutor(max_workers=max(1, self.opt.workers),
+                                       thread_name_prefix="rssm-op")
+
+    def work(self, p: int, op: Callable[[], None]) -> None:
+        """In a worker thread: run the operation of place ``p``, report to the scheduler."""
+        try:
+            op()
+        except BaseException as e:
+            self.done.put((p, e))
+            return
+        self.done.put((p, None))
+
+    def finish(self, p: int, err: BaseException | None) -> None:
+        self.pending -= 1
+        if err is not None:
+            if not isinstance(err, Exception):
+                raise err
+            self.sim._failure(p, err)
+        self.game.release(p)
+
+    def collect(self) -> None:
+        """Take in every operation that has finished."""
+        while True:
+            try:
+                p, err = self.done.get_nowait()
+            except queue.Empty:
+                return
+            self.finish(p, err)
+
+    def run(self) -> tuple[int, str, str]:
+        sim, game, opt = self.sim, self.game, self.opt
+        clock, final, until = self.rt.clock, sim.final, self.until
+        while True:
+            self.collect()
+            if game.tokens[final] and self.pending == 0:
+                return self.steps, "finished", FINISHED
+            if opt.max_steps is not None and self.steps >= opt.max_steps:
+                return self.steps, "steps", f"stopped after {self.steps} firings"
+            now = clock.now()
+            if until is not None and now >= until:
+                return self.steps, "until", f"reached t = {opt.until:g} s (wall clock)"
+            if self.steps % PROGRESS_EVERY == 0 and self.steps:
+                sim._progress(self.steps)
+            try:
+                active = sim._active(now)
+            except EvalError as e:
+                raise _Stop("error", e.message, e.diagnostic()) from None
+            if active:
+                self.fire(active, now)
+            else:
+                self.wait(now)
+
+    def fire(self, active: list[int], now: int) -> None:
+        """Fire one of ``active``; the operations of its output places go to the pool."""
+        rt, game, sim = self.rt, self.game, self.sim
+        active.sort()
+        t = active[int(self.rnd() * len(active))] if len(active) > 1 else active[0]
+        self.steps += 1
+        rt.step = self.steps
+        gate = rt.gates[t]
+        if gate is not None:
+            gate.start(now)
+        game.consume(t)
+        if rt.tracer is not None:
+            sim._trace_fire(t)
+        effect = rt.effects[t]
+        if effect is not None:
+            try:
+                effect()
+            except EvalError as e:
+                raise _Stop("error", e.message, e.diagnostic()) from None
+        for p in game.post[t]:
+            try:
+                game.occupy(t, p)
+            except UnsafeFiring as e:
+                raise sim._unsafe(e) from None
+            op = rt.ops[p]
+            if op is None:
                 game.release(p)
-            pool.shutdown(wait=pending == 0, cancel_futures=True)
+            else:
+                self.pending += 1
+                self.pool.submit(self.work, p, op)
+        if self.record is not None:
+            self.record.append(game.marking())
+
+    def wait(self, now: int) -> None:
+        """Nothing is active: wait for an operation to finish or the next tick (a deadlock if
+        neither can come)."""
+        nxt = self.sim._next_tick(now)
+        if nxt is None and self.pending == 0:
+            if self.game.tokens[self.sim.final]:
+                return
+            raise self.sim._deadlock()
+        timeout = None if nxt is None else max(0.0, (nxt - now) / 1e9)
+        if self.until is not None:
+            left = max(0.0, (self.until - now) / 1e9)
+            timeout = left if timeout is None else min(timeout, left)
+        try:
+            p, err = self.done.get(timeout=timeout)
+        except queue.Empty:
+            return
+        self.finish(p, err)
+
+    def shutdown(self) -> None:
+        """Let the running operations finish (5 s at most), then stop the pool."""
+        deadline = time.monotonic() + 5.0
+        while self.pending > 0 and time.monotonic() < deadline:
+            try:
+                p, _ = self.done.get(timeout=max(0.0, deadline - time.monotonic()))
+            except queue.Empty:
+                break
+            self.pending -= 1
+            self.game.release(p)
+        self.pool.shutdown(wait=self.pending == 0, cancel_futures=True)

@@ -3,17 +3,17 @@ only has to display the markings.
 
 Two inputs are accepted (told apart by their content):
 
-* a trace of `rssmc simulate`: JSON lines, one object per line; the lines with
-  `"event": "fire"` name the fired transition in `"transition"` (its id in the paper's
-  notation, e.g. `"t[1,lwr,move,4]"`); every other line (behaviour switches, buffer values,
-  ...) is skipped;
+* a trace of `rssmc simulate`: JSON lines, read and validated by the one trace reader
+  (:mod:`rssm_core.trace`); its `fire` events name the fired transition in `"transition"`
+  (its id in the paper's notation, e.g. `"t[1,lwr,move,4]"`); every other event (behaviour
+  switches, buffer values, ...) is skipped;
 * a verifier counterexample: the JSON report of `rssmc verify --format json` (its first
   counterexample is played: deadlocks first, then an unsafe firing, then a loss of progress,
   whose way to the cycle and then the cycle, twice, follow its steps), one counterexample
   object (`{"kind": ..., "steps": [...]}`), or a plain list. Steps are transition ids, or
   objects naming one in `"name"` or `"transition"`.
 
-Firing follows the safe-net rule of the flattened net: a transition is enabled when all its
+Firing follows the rule of :mod:`rssm_core.firing`: a transition is enabled when all its
 input places are marked; firing removes their tokens and marks its output places. A firing that
 would put a second token into a place is played (that is what a safeness counterexample shows)
 and the step records those places as unsafe. Problems are diagnostics E852-E854 at the line of
@@ -27,6 +27,8 @@ from dataclasses import dataclass
 from pathlib import Path
 from typing import Any
 
+from rssm_core.firing import Net
+from rssm_core.trace import TraceFormatError, parse_trace
 from rssm_dsl.diagnostics import DiagnosticBag
 from rssm_dsl.hpn.flat import FlatNet
 from rssm_dsl.source import Span
@@ -112,28 +114,14 @@ def _counterexample(doc: Any) -> tuple[str, list[str]] | None:
 
 
 def _jsonl(text: str, source: str, bag: DiagnosticBag) -> list[Firing] | None:
-    firings: list[Firing] = []
-    for n, raw in enumerate(text.splitlines(), start=1):
-        if not raw.strip():
-            continue
-        try:
-            obj = json.loads(raw)
-        except json.JSONDecodeError as e:
-            bag.error("E852", f"line {n} of the trace is not JSON: {e.msg}", _at(source, n),
-                      "a trace has one JSON object per line")
-            return None
-        if not isinstance(obj, dict):
-            bag.error("E852", f"line {n} of the trace is not a JSON object", _at(source, n))
-            return None
-        if obj.get("event") != "fire":
-            continue
-        name = obj.get("transition")
-        if not isinstance(name, str):
-            bag.error("E852", f"line {n}: a fire event without a \"transition\" string",
-                      _at(source, n))
-            return None
-        firings.append(Firing(name, n))
-    return firings
+    try:
+        trace = parse_trace(text.split("\n"), source)
+    except TraceFormatError as e:
+        bag.error("E852", f"line {e.line} of the trace: {e.message}", _at(source, e.line),
+                  "a trace has one JSON object per line, each with \"event\"; a fire event "
+                  "names its transition in \"transition\"")
+        return None
+    return [Firing(f.transition, f.line) for f in trace.fires()]
 
 
 def read_firings(path: Path, bag: DiagnosticBag) -> tuple[str, list[Firing]] | None:
@@ -178,7 +166,8 @@ def play(net: FlatNet, firings: list[Firing], source: str, kind: str,
                  f"{max_steps}", _at(source, max(firings[max_steps].line, 1)),
                  "raise the limit with --max-steps")
         firings = firings[:max_steps]
-    by_name = {t.name: t for t in net.transitions}
+    by_name = {t.name: t.index for t in net.transitions}
+    rule = Net.of(net.transitions, len(net.places))
     marking = set(net.initial)
     steps: list[Step] = []
     for k, f in enumerate(firings, start=1):
@@ -189,16 +178,14 @@ def play(net: FlatNet, firings: list[Firing], source: str, kind: str,
                       "of the flattened net", where,
                       "was the trace made from this specification?")
             return None
-        missing = [net.places[p].name for p in t.pre if p not in marking]
+        missing = rule.missing(marking, t)
         if missing:
-            bag.error("E854", f"step {k} fires '{t.name}', which is not enabled: "
-                      f"{', '.join(missing)} not marked", where,
+            bag.error("E854", f"step {k} fires '{f.transition}', which is not enabled: "
+                      f"{', '.join(net.places[p].name for p in missing)} not marked", where,
                       "the trace does not follow from the initial marking of this net")
             return None
-        marking.difference_update(t.pre)
-        unsafe = tuple(sorted(marking.intersection(t.post)))
-        marking.update(t.post)
-        steps.append(Step(t.name, tuple(sorted(marking)), unsafe, f.line))
+        unsafe = rule.fire_in_place(marking, t)
+        steps.append(Step(f.transition, tuple(sorted(marking)), unsafe, f.line))
     return Playback(source, kind, tuple(sorted(net.initial)), tuple(steps))
 
 

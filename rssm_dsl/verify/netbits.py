@@ -7,6 +7,11 @@ place) when ``(m & ~pre[t]) & post[t]`` is not zero. A place in both the pre- an
 of a transition is a test (read) arc: it must be marked and stays marked.
 
 The vectorised explorer works on the same masks split into 64-bit words (``words``).
+
+This is the firing rule of :mod:`rssm_core.firing` in bitmask form: the masks are derived from
+the :class:`~rssm_core.firing.Net` of the flat net (``NetBits.rule``: its pre-sets, post-sets,
+``consume``, ``produce``, consumers and producers), and ``tests/core`` checks ``enabled``,
+``fire``, ``unsafe_places`` and the vectorised search against the rule on random nets.
 """
 
 from __future__ import annotations
@@ -16,6 +21,7 @@ from dataclasses import dataclass
 import numpy as np
 import numpy.typing as npt
 
+from rssm_core.firing import Net, NetError
 from rssm_dsl.hpn.flat import FlatNet, Role
 
 U64 = npt.NDArray[np.uint64]
@@ -68,6 +74,7 @@ class NetBits:
     nwords: int
     pre_words: U64                  # (ntrans, nwords)
     post_words: U64                 # (ntrans, nwords)
+    rule: Net                       # the structure the masks are made of
 
     @staticmethod
     def of(net: FlatNet) -> NetBits:
@@ -79,26 +86,20 @@ class NetBits:
         for i, tr in enumerate(net.transitions):
             if tr.index != i:
                 raise ValueError(f"transition {tr.name!r} has index {tr.index}, expected {i}")
-            for q in (*tr.pre, *tr.post):
-                if not 0 <= q < nplaces:
-                    raise ValueError(f"transition {tr.name!r} refers to place {q}, out of range")
-        pre = tuple(to_mask(t.pre) for t in net.transitions)
-        post = tuple(to_mask(t.post) for t in net.transitions)
-        consume = tuple(a & ~b for a, b in zip(pre, post, strict=True))
-        produce = tuple(b & ~a for a, b in zip(pre, post, strict=True))
-        consumers = [0] * nplaces
-        producers = [0] * nplaces
-        for t in range(ntrans):
-            for p in bits(pre[t]):
-                consumers[p] |= 1 << t
-            for p in bits(produce[t]):
-                producers[p] |= 1 << t
-        conflict = []
-        for t in range(ntrans):
-            c = 1 << t
-            for p in bits(pre[t]):
-                c |= consumers[p]
-            conflict.append(c)
+        try:
+            rule = Net.of(net.transitions, nplaces)
+        except NetError as e:
+            if e.transition is None:
+                raise
+            name = net.transitions[e.transition].name
+            raise ValueError(f"transition {name!r}: {e.problem}") from None
+        pre = tuple(to_mask(ps) for ps in rule.pre)
+        post = tuple(to_mask(ps) for ps in rule.post)
+        consume = tuple(to_mask(ps) for ps in rule.consume)
+        produce = tuple(to_mask(ps) for ps in rule.produce)
+        consumers = tuple(to_mask(ts) for ts in rule.consumers)
+        producers = tuple(to_mask(ts) for ts in rule.producers)
+        conflict = tuple(to_mask(rule.conflict(t)) for t in range(ntrans))
         nwords = max(1, (nplaces + 63) // 64)
         pre_words = np.array([to_words(m, nwords) for m in pre], dtype=np.uint64).reshape(
             ntrans, nwords)
@@ -108,8 +109,8 @@ class NetBits:
             net=net, nplaces=nplaces, ntrans=ntrans,
             initial=to_mask(net.initial), final=to_mask(net.final),
             pre=pre, post=post, consume=consume, produce=produce,
-            consumers=tuple(consumers), producers=tuple(producers), conflict=tuple(conflict),
-            nwords=nwords, pre_words=pre_words, post_words=post_words,
+            consumers=consumers, producers=producers, conflict=conflict,
+            nwords=nwords, pre_words=pre_words, post_words=post_words, rule=rule,
         )
 
     def is_final(self, marking: int) -> bool:

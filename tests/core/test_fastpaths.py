@@ -1,0 +1,302 @@
+"""The fast paths of the backends follow the one firing rule (rssm_core.firing).
+
+On random small nets, safe and unsafe (tests/core/nets.py), each fast path is run next to the
+core rule and compared: markings, enabled sets, missing-token counts, successor sets and unsafe
+reports. Fast paths: the interpreter's token game (``TokenGame.fire``, ``run_free``) and its
+compiled firing code (one function per transition, and macro steps), the verifier's bitmasks
+(``NetBits``), its vectorised kernel and breadth-first search (``explore_full``) and the
+stubborn-set search with and without reduction.
+"""
+
+from __future__ import annotations
+
+from collections.abc import Callable
+
+import numpy as np
+import pytest
+from hypothesis import HealthCheck, find, given, settings
+from hypothesis import strategies as st
+
+from rssm_core.firing import Marking, Net
+from rssm_dsl.interp.codegen import FiringCode
+from rssm_dsl.interp.engine import TokenGame, UnsafeFiring
+from rssm_dsl.verify.netbits import NetBits, bits, from_words, to_words
+from rssm_dsl.verify.statespace import _Kernel, explore_full
+from rssm_dsl.verify.stubborn import explore_reduced
+from tests.core.nets import RandomNet, explore, markings_of, mask, nets
+
+PROPERTY = settings(max_examples=150, deadline=None,
+                    suppress_health_check=[HealthCheck.too_slow, HealthCheck.data_too_large])
+STEPS = 12
+
+
+class Unsafe(Exception):
+    def __init__(self, t: int | str, p: int) -> None:
+        super().__init__(t, p)
+        self.t, self.p = int(t), p
+
+
+def _raise_unsafe(t: int, p: int) -> None:
+    raise Unsafe(t, p)
+
+
+def _no_failure(p: int, e: Exception) -> None:
+    raise AssertionError(f"no operation runs here ({p}: {e})")
+
+
+def _check_game(game: TokenGame, rule: Net, marking: Marking, eager: bytearray) -> None:
+    """The token array, the missing-token counts and the enabled set say ``marking``."""
+    assert game.marking() == marking
+    assert game.missing == [len(rule.missing(marking, u)) for u in range(rule.ntransitions)]
+    assert game.enabled == {u for u in rule.enabled_set(marking) if not eager[u]}
+
+
+def _code(game: TokenGame, rule: Net, eager: bytearray, local: list[int],
+          macros: bool) -> FiringCode:
+    n = rule.ntransitions
+    none: list[Callable[[], None] | None] = [None] * n
+    return FiringCode(game, [None] * rule.nplaces, none, [None] * n, [None] * n, eager, local,
+                      {}, _no_failure, _raise_unsafe, macros)
+
+
+# ---------------------------------------------------------------- the interpreter
+
+
+@PROPERTY
+@given(nets(), st.data())
+def test_token_game_fire_is_the_rule(net: RandomNet, data: st.DataObject) -> None:
+    rule, game = net.rule(), TokenGame(net.flat())
+    assert game.pre == list(rule.pre) and game.post == list(rule.post)
+    marking = net.initial
+    none = bytearray(rule.ntransitions)
+    _check_game(game, rule, marking, none)
+    for _ in range(STEPS):
+        enabled = rule.enabled_set(marking)
+        if not enabled:
+            break
+        t = data.draw(st.sampled_from(enabled))
+        expected = rule.fire(marking, t)
+        if expected.unsafe:
+            with pytest.raises(UnsafeFiring) as e:
+                game.fire(t)
+            assert (e.value.transition, e.value.place) == (t, expected.unsafe[0])
+            return
+        game.fire(t)
+        marking = expected.marking
+        _check_game(game, rule, marking, none)
+
+
+@PROPERTY
+@given(nets(), st.integers(0, 2**32))
+def test_token_game_free_run_takes_successors_of_the_rule(net: RandomNet, seed: int) -> None:
+    rule, game = net.rule(), TokenGame(net.flat())
+    marking = net.initial
+    none = bytearray(rule.ntransitions)
+    for k in range(STEPS):
+        successors = rule.successors(marking)
+        if not successors:
+            assert game.run_free(1, seed + k) == 0
+            break
+        try:
+            assert game.run_free(1, seed + k) == 1
+        except UnsafeFiring as e:
+            assert e.place == rule.unsafe(marking, e.transition)[0]
+            assert rule.enabled(marking, e.transition)
+            return
+        marking = game.marking()
+        assert marking in {f.marking for f in successors if f.safe}
+        _check_game(game, rule, marking, none)
+
+
+@PROPERTY
+@given(nets(), st.data())
+def test_compiled_firing_code_is_the_rule(net: RandomNet, data: st.DataObject) -> None:
+    """fire[t]() of codegen: same tokens, counts and enabled set; the eager (local) steps made
+    enabled by a firing are the ones pushed on the stack of local steps; unsafe at the same
+    place."""
+    rule, game = net.rule(), TokenGame(net.flat())
+    n = rule.ntransitions
+    eager = bytearray(data.draw(st.lists(st.booleans(), min_size=n, max_size=n)))
+    local: list[int] = []
+    code = _code(game, rule, eager, local, macros=False)
+    game.enabled.difference_update(u for u in range(n) if eager[u])   # as the scheduler does
+    marking = net.initial
+    _check_game(game, rule, marking, eager)
+    for _ in range(STEPS):
+        enabled = rule.enabled_set(marking)
+        if not enabled:
+            break
+        t = data.draw(st.sampled_from(enabled))
+        expected = rule.fire(marking, t)
+        before = len(local)
+        if expected.unsafe:
+            with pytest.raises(Unsafe) as e:
+                code.fire[t]()
+            assert (e.value.t, e.value.p) == (t, expected.unsafe[0])
+            return
+        code.fire[t]()
+        marking = expected.marking
+        _check_game(game, rule, marking, eager)
+        woken = {u for u in rule.enabled_set(marking)
+                 if eager[u] and set(rule.pre[u]) & set(rule.post[t])}
+        assert sorted(local[before:]) == sorted(woken)
+
+
+def _macro_outcomes(rule: Net, marking: Marking, t: int, length: int,
+                    eager: bytearray) -> tuple[set[Marking], bool]:
+    """By the rule: the markings reached by firing ``t`` and then ``length - 1`` more distinct
+    eager transitions, and whether some such sequence makes an unsafe firing on the way."""
+    ends: set[Marking] = set()
+    unsafe = False
+
+    def go(m: Marking, used: frozenset[int], left: int, step: int) -> None:
+        nonlocal unsafe
+        f = rule.fire(m, step)
+        if f.unsafe:
+            unsafe = True
+            return
+        if left == 0:
+            ends.add(f.marking)
+            return
+        for u in rule.enabled_set(f.marking):
+            if eager[u] and u not in used:
+                go(f.marking, used | {u}, left - 1, u)
+
+    go(marking, frozenset({t}), length - 1, t)
+    return ends, unsafe
+
+
+@PROPERTY
+@given(nets(), st.data())
+def test_compiled_macro_steps_are_firing_sequences_of_the_rule(net: RandomNet,
+                                                               data: st.DataObject) -> None:
+    """macro[t]() fires t and then local steps in one function: it must end in a marking the
+    rule reaches by t and macro_len[t] - 1 eager firings, and report an unsafe firing only if
+    such a sequence has one."""
+    rule, game = net.rule(), TokenGame(net.flat())
+    n = rule.ntransitions
+    eager = bytearray(data.draw(st.lists(st.booleans(), min_size=n, max_size=n)))
+    local: list[int] = []
+    code = _code(game, rule, eager, local, macros=True)
+    assert code.macros is not None
+    game.enabled.difference_update(u for u in range(n) if eager[u])
+    marking = net.initial
+    for _ in range(STEPS // 2):
+        enabled = rule.enabled_set(marking)
+        if not enabled:
+            break
+        t = data.draw(st.sampled_from(enabled))
+        ends, unsafe = _macro_outcomes(rule, marking, t, code.macro_len[t], eager)
+        try:
+            code.macros[t]()
+        except Unsafe:
+            assert unsafe
+            return
+        marking = game.marking()
+        assert marking in ends
+        _check_game(game, rule, marking, eager)
+        assert all(eager[u] and rule.enabled(marking, u) for u in local)
+        local.clear()
+
+
+# ---------------------------------------------------------------- the verifier
+
+
+@PROPERTY
+@given(nets().flatmap(lambda net: st.tuples(st.just(net), st.lists(markings_of(net),
+                                                                    min_size=1, max_size=6))))
+def test_bitmasks_and_the_vectorised_kernel_are_the_rule(
+        case: tuple[RandomNet, list[Marking]]) -> None:
+    net, markings = case
+    rule, nb = net.rule(), NetBits.of(net.flat())
+    assert nb.rule.pre == rule.pre and nb.rule.post == rule.post
+    kernel = _Kernel(nb)
+    perm = [int(t) for t in kernel.perm]
+    rows = np.array([to_words(mask(m), nb.nwords) for m in markings], dtype=np.uint64)
+    en = kernel.enabled(rows)
+    for s, m in enumerate(markings):
+        enabled = rule.enabled_set(m)
+        assert nb.enabled(mask(m)) == list(enabled)
+        assert sorted(perm[j] for j in np.flatnonzero(en[s])) == list(enabled)
+        for t in enabled:
+            f = rule.fire(m, t)
+            assert nb.fire(mask(m), t) == mask(f.marking)
+            assert nb.unsafe_places(mask(m), t) == mask(f.unsafe)
+    si, ti = np.nonzero(en)
+    succ, clash = kernel.fire(rows, si, ti)
+    for k in range(si.size):
+        m, t = markings[int(si[k])], perm[int(ti[k])]
+        f = rule.fire(m, t)
+        assert frozenset(bits(from_words([int(x) for x in succ[k]]))) == f.marking
+        assert (clash is not None and bool(clash[k])) == bool(f.unsafe)
+        assert kernel.clash_places(rows[int(si[k])], int(ti[k])) == mask(f.unsafe)
+
+
+@PROPERTY
+@given(nets())
+def test_vectorised_search_explores_what_the_rule_reaches(net: RandomNet) -> None:
+    rule, nb = net.rule(), NetBits.of(net.flat())
+    ref = explore(rule, net.initial)
+    r = explore_full(nb, max_counterexamples=10**6)
+    if net.safe:
+        assert ref.unsafe_depth is None
+    if ref.unsafe_depth is None:
+        assert r.unsafe is None and r.complete and r.graph is not None
+        g = r.graph
+        states = [frozenset(bits(g.marking(s))) for s in range(g.size)]
+        assert len(states) == len(set(states)) and set(states) == ref.states
+        assert {(states[int(a)], int(t), states[int(b)])
+                for a, t, b in zip(g.src, g.trans, g.dst, strict=True)} == ref.edges
+        assert r.edges == len(ref.edges)
+        assert {frozenset(bits(d.marking)) for d in r.deadlocks} == ref.dead
+        assert r.deadlock_count == len(ref.dead)
+        assert r.fired == frozenset(ref.fired)
+        assert r.ever_marked == mask(frozenset().union(*ref.states))
+        for s in range(g.size):     # BFS tree paths are firing sequences of the rule
+            reached = rule.run(net.initial, g.path(s))
+            assert (reached[-1].marking if reached else net.initial) == states[s]
+    else:
+        assert r.unsafe is not None and not r.complete
+        *prefix, last = r.unsafe.steps
+        assert len(r.unsafe.steps) == ref.unsafe_depth + 1       # a shortest one
+        run = rule.run(net.initial, prefix)
+        assert all(f.safe for f in run)
+        m = run[-1].marking if run else net.initial
+        assert r.unsafe.marking == mask(m) and r.unsafe.transition == last
+        assert r.unsafe.places == mask(rule.fire(m, last).unsafe) != 0
+
+
+@PROPERTY
+@given(nets(), st.booleans())
+def test_stubborn_search_agrees_with_the_rule(net: RandomNet, reduce: bool) -> None:
+    rule, nb = net.rule(), NetBits.of(net.flat())
+    ref = explore(rule, net.initial)
+    r = explore_reduced(nb, reduce=reduce, max_counterexamples=10**6)
+    assert (r.unsafe is None) == (ref.unsafe_depth is None)
+    if r.unsafe is None:
+        assert {frozenset(bits(d.marking)) for d in r.deadlocks} == ref.dead
+        if not reduce:
+            assert r.states == len(ref.states)
+    else:
+        firings = rule.run(net.initial, r.unsafe.steps)
+        assert all(f.safe for f in firings[:-1]) and not firings[-1].safe
+
+
+@pytest.mark.parametrize("what", ["unsafe", "dead", "test arc", "source", "words"])
+def test_the_random_nets_contain_the_cases_that_matter(what: str) -> None:
+    """The generator reaches unsafe firings, deadlocks, test arcs, transitions without input
+    places and markings of several 64-bit words (else the properties above prove little)."""
+    def wanted(net: RandomNet) -> bool:
+        rule = net.rule()
+        return {
+            "unsafe": lambda: explore(rule, net.initial).unsafe_depth is not None,
+            "dead": lambda: bool(explore(rule, net.initial).dead),
+            "test arc": lambda: any(set(a) & set(b) for a, b in zip(rule.pre, rule.post,
+                                                                    strict=True)),
+            "source": lambda: bool(rule.sources),
+            "words": lambda: NetBits.of(net.flat()).nwords > 1 and max(net.pool) >= 64,
+        }[what]()
+
+    found = find(nets(), wanted, settings=settings(max_examples=2000, deadline=None,
+                                                   database=None))
+    assert wanted(found)
