@@ -12,6 +12,7 @@ from dataclasses import dataclass, field
 from enum import Enum
 from functools import cached_property
 
+from rssm_core.firing import Net
 from rssm_dsl.source import Span
 
 
@@ -91,22 +92,10 @@ class FlatNet:
         return {t.name: t.index for t in self.transitions}
 
     @cached_property
-    def consumers(self) -> tuple[tuple[int, ...], ...]:
-        """Per place, the transitions that take its token (it is in their pre-set), in order."""
-        out: list[list[int]] = [[] for _ in self.places]
-        for t in self.transitions:
-            for p in t.pre:
-                out[p].append(t.index)
-        return tuple(map(tuple, out))
-
-    @cached_property
-    def producers(self) -> tuple[tuple[int, ...], ...]:
-        """Per place, the transitions that put a token into it (post-set), in order."""
-        out: list[list[int]] = [[] for _ in self.places]
-        for t in self.transitions:
-            for p in t.post:
-                out[p].append(t.index)
-        return tuple(map(tuple, out))
+    def rule(self) -> Net:
+        """The net's structure for the firing rule (rssm_core.firing): pre- and post-sets,
+        and per place its consumers and producers."""
+        return Net.of(self.transitions, len(self.places))
 
     def place(self, name: str) -> FlatPlace:
         return self.places[self.place_index[name]]

@@ -29,7 +29,7 @@ class TokenGame:
 
     def __init__(self, net: FlatNet, rule: Net | None = None) -> None:
         self.net = net
-        self.rule = rule if rule is not None else Net.of(net.transitions, len(net.places))
+        self.rule = rule if rule is not None else net.rule
         self.pre: list[tuple[int, ...]] = list(self.rule.pre)
         self.post: list[tuple[int, ...]] = list(self.rule.post)
         self.consumers: list[tuple[int, ...]] = list(self.rule.consumers)

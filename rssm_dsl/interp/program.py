@@ -334,7 +334,7 @@ class _Builder:
                     ok = False
                     break
                 place = ft.post[0]
-                done = [net.transitions[u] for u in net.consumers[place]
+                done = [net.transitions[u] for u in net.rule.consumers[place]
                         if net.transitions[u].pre == (place,)]
                 if len(done) != 1 or done[0].post != (p_out,) or rt.effects[ft.index] \
                         or rt.effects[done[0].index]:

@@ -27,7 +27,6 @@ from dataclasses import dataclass
 from pathlib import Path
 from typing import Any
 
-from rssm_core.firing import Net
 from rssm_core.trace import TraceFormatError, parse_trace
 from rssm_dsl.diagnostics import DiagnosticBag
 from rssm_dsl.hpn.flat import FlatNet
@@ -167,7 +166,7 @@ def play(net: FlatNet, firings: list[Firing], source: str, kind: str,
                  "raise the limit with --max-steps")
         firings = firings[:max_steps]
     by_name = {t.name: t.index for t in net.transitions}
-    rule = Net.of(net.transitions, len(net.places))
+    rule = net.rule
     marking = set(net.initial)
     steps: list[Step] = []
     for k, f in enumerate(firings, start=1):

@@ -87,7 +87,7 @@ class NetBits:
             if tr.index != i:
                 raise ValueError(f"transition {tr.name!r} has index {tr.index}, expected {i}")
         try:
-            rule = Net.of(net.transitions, nplaces)
+            rule = net.rule
         except NetError as e:
             if e.transition is None:
                 raise

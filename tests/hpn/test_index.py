@@ -71,8 +71,10 @@ def assert_index_is_a_scan(hpn: HPN) -> None:
 def assert_flat_lookups_are_a_scan(net: FlatNet) -> None:
     for p in net.places:
         assert net.place(p.name) is p
-        assert net.consumers[p.index] == tuple(t.index for t in net.transitions if p.index in t.pre)
-        assert net.producers[p.index] == tuple(t.index for t in net.transitions if p.index in t.post)
+        rule = net.rule
+        assert rule.consumers[p.index] == tuple(t.index for t in net.transitions if p.index in t.pre)
+        assert rule.producers[p.index] == tuple(t.index for t in net.transitions
+                                                if p.index in t.post and p.index not in t.pre)
     for t in net.transitions:
         assert net.transition(t.name) is t
     with pytest.raises(KeyError):
