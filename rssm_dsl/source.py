@@ -33,9 +33,6 @@ class Span:
         )
 
 
-NO_SPAN = Span("<builtin>", 0, 0, 0, 0)
-
-
 @dataclass(frozen=True)
 class SourceFile:
     """The text of one file, with a line index for offset -> (line, column) conversion."""

@@ -7,10 +7,17 @@ from typing import Annotated
 
 import typer
 
-from rssm_dsl.cli import EXIT_ERRORS, EXIT_OK, EXIT_USAGE, Format, guarded, report
-
-FileArg = Annotated[Path, typer.Argument(help="The .rssm file of the system.", show_default=False)]
-FormatOpt = Annotated[Format, typer.Option("--format", "-f", help="How to print diagnostics.")]
+from rssm_dsl.commands.common import (
+    EXIT_ERRORS,
+    EXIT_OK,
+    EXIT_USAGE,
+    FileArg,
+    Format,
+    FormatOpt,
+    QuietOpt,
+    guarded,
+    report,
+)
 
 
 def check(file: FileArg, format: FormatOpt = Format.text) -> None:
@@ -34,8 +41,7 @@ def compile_cmd(
                                        "pnml-paged, cpn.")]
     = "json,dump,dot,pnml",
     format: FormatOpt = Format.text,
-    quiet: Annotated[bool, typer.Option("--quiet", "-q", help="Print nothing on success.")]
-    = False,
+    quiet: QuietOpt = False,
 ) -> None:
     """Check a specification and write its five-layer HPN (JSON IR, text dump, DOT, PNML).
     Nothing is written when there are errors."""

@@ -8,7 +8,7 @@ from typing import TYPE_CHECKING, Annotated
 
 import typer
 
-from rssm_dsl.cli import EXIT_ERRORS, EXIT_OK, EXIT_USAGE, guarded
+from rssm_dsl.commands.common import EXIT_ERRORS, EXIT_OK, EXIT_USAGE, guarded
 
 if TYPE_CHECKING:
     from rssm_dsl.source import SourceFile

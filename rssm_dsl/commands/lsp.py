@@ -4,7 +4,7 @@ from __future__ import annotations
 
 import typer
 
-from rssm_dsl.cli import EXIT_OK, guarded
+from rssm_dsl.commands.common import EXIT_OK, guarded
 
 
 def lsp() -> None:

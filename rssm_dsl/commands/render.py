@@ -7,10 +7,8 @@ from typing import Annotated
 
 import typer
 
-from rssm_dsl.cli import EXIT_ERRORS, EXIT_OK, Format, guarded, report
+from rssm_dsl.commands.common import EXIT_ERRORS, EXIT_OK, FileArg, Format, FormatOpt, QuietOpt, guarded, report
 from rssm_dsl.render.playback import MAX_STEPS
-
-FileArg = Annotated[Path, typer.Argument(help="The .rssm file of the system.", show_default=False)]
 
 
 def render_cmd(
@@ -27,10 +25,8 @@ def render_cmd(
         "(JSON) to play back in the explorer; implies --html.", show_default=False)] = None,
     max_steps: Annotated[int, typer.Option(
         "--max-steps", min=0, help="Play at most this many firings of the trace.")] = MAX_STEPS,
-    format: Annotated[Format, typer.Option("--format", "-f", help="How to print diagnostics.")]
-    = Format.text,
-    quiet: Annotated[bool, typer.Option("--quiet", "-q", help="Print nothing on success.")]
-    = False,
+    format: FormatOpt = Format.text,
+    quiet: QuietOpt = False,
 ) -> None:
     """Draw each page of the HPN as the paper draws it: fig-H.svg, fig-P_1.svg,
     fig-PB_1_lwr_move.svg, ... and index.html listing them (page id -> file). If Graphviz is

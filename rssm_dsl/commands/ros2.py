@@ -8,10 +8,18 @@ from typing import Annotated
 
 import typer
 
-from rssm_dsl.cli import EXIT_ERRORS, EXIT_OK, EXIT_USAGE, Format, guarded, report
+from rssm_dsl.commands.common import (
+    EXIT_ERRORS,
+    EXIT_OK,
+    EXIT_USAGE,
+    FileArg,
+    Format,
+    FormatOpt,
+    QuietOpt,
+    guarded,
+    report,
+)
 
-FileArg = Annotated[Path, typer.Argument(help="The .rssm file of the system.", show_default=False)]
-FormatOpt = Annotated[Format, typer.Option("--format", "-f", help="How to print diagnostics.")]
 MAINTAINER = re.compile(r"\s*([^<>]+?)\s*<([^<>\s]+@[^<>\s]+)>\s*\Z")
 
 
@@ -26,8 +34,7 @@ def ros2(
     license: Annotated[str, typer.Option(help="License of the generated packages.")]
     = "Apache-2.0",
     format: FormatOpt = Format.text,
-    quiet: Annotated[bool, typer.Option("--quiet", "-q", help="Print nothing on success.")]
-    = False,
+    quiet: QuietOpt = False,
 ) -> None:
     """Generate a colcon workspace: an interfaces package with the system's message types, a
     runtime package, and per agent an ament_python package with one node per subsystem, a

@@ -4,17 +4,26 @@ from __future__ import annotations
 
 import json
 from pathlib import Path
-from typing import TYPE_CHECKING, Annotated, Any
+from typing import TYPE_CHECKING, Annotated
 
 import typer
 
-from rssm_dsl.cli import EXIT_ERRORS, EXIT_OK, EXIT_USAGE, Format, guarded, report
+from rssm_dsl.commands.common import (
+    EXIT_ERRORS,
+    EXIT_INTERRUPTED,
+    EXIT_OK,
+    EXIT_USAGE,
+    Format,
+    guarded,
+    report,
+)
 
 if TYPE_CHECKING:
     from rssm_dsl.diagnostics import Diagnostic
     from rssm_dsl.pipeline import Compilation
+    from rssm_dsl.run import Experiment
+    from rssm_dsl.run.viewer import Viewer
 
-EXIT_INTERRUPTED = 130
 DAMPING = ("velocity-error", "paper")
 
 FileArg = Annotated[Path, typer.Argument(help="The .rssm file of the system (e.g. "
@@ -86,10 +95,8 @@ def _run(file: Path, output: Path | None, until: float, switches: int, damping: 
     from rssm_dsl.diagnostics import Diagnostic
     from rssm_dsl.emit.write import write_outputs
     from rssm_dsl.pipeline import compile_file
-    from rssm_dsl.run import RunError, RunOptions, output_files, run_experiment, summary_text
-    from rssm_dsl.run.report import summary_dict
+    from rssm_dsl.run import RunError, RunOptions, output_files, run_experiment
     from rssm_dsl.run.video import choose_backend
-    from rssm_dsl.run.viewer import Viewer, display_problem
 
     if video is not None:
         choose_backend()                  # before anything imports mujoco
@@ -99,20 +106,11 @@ def _run(file: Path, output: Path | None, until: float, switches: int, damping: 
         return EXIT_ERRORS
     if comp.diagnostics and fmt is Format.text and not quiet:
         report(comp, fmt)
-    span = comp.system.span
     warnings: list[Diagnostic] = []
-    observers: list[Any] = []
-    show: Viewer | None = None
-    if viewer:
-        problem = display_problem()
-        if problem is not None:
-            warnings.append(Diagnostic("W872", problem, span))
-            _show(comp, warnings[-1:], fmt)
-        else:
-            show = Viewer()
-            observers.append(show)
+    show = _open_viewer(comp, warnings, fmt) if viewer else None
     options = RunOptions(until=until, switches=switches, damping=damping, seed=seed,
-                         trace=trace, keep_q=video is not None, observers=tuple(observers))
+                         trace=trace, keep_q=video is not None,
+                         observers=(show,) if show is not None else ())
     try:
         exp = run_experiment(comp, options)
     except RunError as e:
@@ -125,27 +123,69 @@ def _run(file: Path, output: Path | None, until: float, switches: int, damping: 
         if show is not None:
             show.close()
     if show is not None and show.problem is not None:
-        warnings.append(Diagnostic("W872", show.problem, span))
-        _show(comp, warnings[-1:], fmt)
+        _warn(comp, warnings, Diagnostic("W872", show.problem, comp.system.span), fmt)
     _show(comp, list(exp.diagnostics), fmt)
 
     target = output if output is not None else Path("out") / f"{file.stem}-run"
     written = write_outputs(target, output_files(exp))
-    video_note = ""
-    if video is not None:
-        from rssm_dsl.run.video import write_video
+    video_note = _write_video(comp, exp, video, warnings, fmt) if video is not None else ""
+    _print_result(exp, written, target, video if video_note else None, video_note, trace,
+                  warnings, fmt, quiet)
+    if exp.reason == "interrupted":
+        return EXIT_INTERRUPTED
+    if not exp.ok:
+        if fmt is Format.text:
+            typer.echo(f"{file}: {exp.message}", err=True)
+        return EXIT_ERRORS
+    return EXIT_OK
 
-        result = write_video(exp, video)
-        if result.problem is not None:
-            warnings.append(Diagnostic("W873", result.problem, span))
-            _show(comp, warnings[-1:], fmt)
-        else:
-            video_note = f", {result.frames} frames to {video}"
+
+def _warn(comp: Compilation, warnings: list[Diagnostic], warning: Diagnostic,
+          fmt: Format) -> None:
+    """Keep a warning for the JSON summary and print it now (text)."""
+    warnings.append(warning)
+    _show(comp, [warning], fmt)
+
+
+def _open_viewer(comp: Compilation, warnings: list[Diagnostic], fmt: Format) -> Viewer | None:
+    """MuJoCo's viewer, or None (with a W872 warning) when there is no display."""
+    from rssm_dsl.diagnostics import Diagnostic
+    from rssm_dsl.run.viewer import Viewer, display_problem
+
+    assert comp.system is not None
+    problem = display_problem()
+    if problem is not None:
+        _warn(comp, warnings, Diagnostic("W872", problem, comp.system.span), fmt)
+        return None
+    return Viewer()
+
+
+def _write_video(comp: Compilation, exp: Experiment, video: Path, warnings: list[Diagnostic],
+                 fmt: Format) -> str:
+    """Render the run to `video`; the note for the summary ('' with a W873 warning if the
+    video could not be written)."""
+    from rssm_dsl.diagnostics import Diagnostic
+    from rssm_dsl.run.video import write_video
+
+    assert comp.system is not None
+    result = write_video(exp, video)
+    if result.problem is not None:
+        _warn(comp, warnings, Diagnostic("W873", result.problem, comp.system.span), fmt)
+        return ""
+    return f", {result.frames} frames to {video}"
+
+
+def _print_result(exp: Experiment, written: list[Path], target: Path, video: Path | None,
+                  video_note: str, trace: Path | None, warnings: list[Diagnostic], fmt: Format,
+                  quiet: bool) -> None:
+    """The summary: summary.json on stdout (json), or the text summary."""
+    from rssm_dsl.run import summary_text
+    from rssm_dsl.run.report import summary_dict
 
     if fmt is Format.json:
         data = summary_dict(exp)
         data["outputs"] = [str(p) for p in written]
-        data["video"] = str(video) if video is not None and video_note else None
+        data["video"] = str(video) if video is not None else None
         data["warnings"] = [d.to_json() for d in warnings]
         typer.echo(json.dumps(data, indent=2))
     elif not quiet:
@@ -154,13 +194,6 @@ def _run(file: Path, output: Path | None, until: float, switches: int, damping: 
                    f"{video_note}")
         if trace is not None:
             typer.echo(f"  trace      {trace}")
-    if exp.reason == "interrupted":
-        return EXIT_INTERRUPTED
-    if not exp.ok:
-        if fmt is Format.text:
-            typer.echo(f"{file}: {exp.message}", err=True)
-        return EXIT_ERRORS
-    return EXIT_OK
 
 
 def register(app: typer.Typer) -> None:

@@ -10,14 +10,27 @@ from typing import TYPE_CHECKING, Annotated, Any
 
 import typer
 
-from rssm_dsl.cli import EXIT_ERRORS, EXIT_OK, EXIT_USAGE, Format, guarded, report
+from rssm_dsl.commands.common import (
+    EXIT_ERRORS,
+    EXIT_INTERRUPTED,
+    EXIT_OK,
+    EXIT_USAGE,
+    FileArg,
+    Format,
+    guarded,
+    report,
+)
 
 if TYPE_CHECKING:
+    from rssm_dsl.diagnostics import Diagnostic
+    from rssm_dsl.interp.program import Runtime
+    from rssm_dsl.interp.replay import Counterexample, ReplayVerdict
+    from rssm_dsl.interp.scheduler import RunResult
     from rssm_dsl.interp.summary import Snapshot
+    from rssm_dsl.pipeline import Compilation
+    from rssm_dsl.semantics.model import System
 
-EXIT_INTERRUPTED = 130
 
-FileArg = Annotated[Path, typer.Argument(help="The .rssm file of the system.", show_default=False)]
 
 
 def _pairs(values: list[str], what: str, sep: str) -> dict[str, str]:
@@ -124,16 +137,9 @@ def _simulate(file: Path, steps: int | None, until: float | None, mode: str, see
               trace: Path | None, replay: Path | None, devices: dict[str, str],
               options: dict[str, dict[str, str]], workers: int, live: bool | None,
               fmt: Format, quiet: bool, eager: bool = True) -> int:
-    from rssm_dsl.diagnostics.render import render_text
     from rssm_dsl.interp import RunConfig, SimOptions, Simulator, build_runtime
     from rssm_dsl.interp.errors import SetupError
-    from rssm_dsl.interp.replay import (
-        ReplayFileError,
-        judge,
-        load_counterexample,
-        resolve_steps,
-    )
-    from rssm_dsl.interp.summary import render
+    from rssm_dsl.interp.replay import judge
     from rssm_dsl.interp.trace import TraceWriter
     from rssm_dsl.pipeline import compile_file
 
@@ -143,49 +149,29 @@ def _simulate(file: Path, steps: int | None, until: float | None, mode: str, see
         return EXIT_ERRORS
     if comp.diagnostics and fmt is Format.text and not quiet:
         report(comp, fmt)
-    known = {d.id for d in comp.system.devices()}
-    for target in [*devices, *options]:
-        if not any(fnmatchcase(k, target) for k in known):
-            typer.echo(f"rssmc: no device {target} in system {comp.system.name} (devices: "
-                       f"{', '.join(sorted(known)) or 'none'})", err=True)
-            return EXIT_USAGE
-
-    def show(diags: list[Any]) -> None:
-        if not diags:
-            return
-        if fmt is Format.json:
-            return
-        typer.echo(render_text(diags, comp.program.line), err=True)
+    unknown = _unknown_device(comp.system, [*devices, *options])
+    if unknown is not None:
+        typer.echo(unknown, err=True)
+        return EXIT_USAGE
 
     config = RunConfig(base_dir=file.resolve().parent, devices=devices, device_options=options,
                        wall_clock=mode == "concurrent")
     try:
         rt = build_runtime(comp, config)
     except SetupError as e:
-        show(e.diagnostics)
+        _show(comp, e.diagnostics, fmt)
         if fmt is Format.json:
             typer.echo(json.dumps({"reason": "setup", "diagnostics":
                                    [d.to_json() for d in e.diagnostics]}, indent=2))
         return EXIT_ERRORS
 
-    forced: list[int] | None = None
-    cx = None
+    cx, forced = None, None
     if replay is not None:
-        try:
-            cx = load_counterexample(replay)
-        except ReplayFileError as e:
-            typer.echo(f"rssmc: --replay: {e}", err=True)
+        loaded = _load_replay(comp, rt, replay, mode, fmt)
+        if isinstance(loaded, int):
             rt.close_devices()
-            return EXIT_USAGE
-        forced, bad = resolve_steps(rt.net, cx.sequence(), str(replay))
-        if bad:
-            show(bad)
-            rt.close_devices()
-            return EXIT_ERRORS
-        if mode != "deterministic":
-            typer.echo("rssmc: --replay runs in deterministic mode", err=True)
-            rt.close_devices()
-            return EXIT_USAGE
+            return loaded
+        cx, forced = loaded
 
     tracer = TraceWriter(trace) if trace is not None else None
     rt.tracer = tracer
@@ -211,29 +197,83 @@ def _simulate(file: Path, steps: int | None, until: float | None, mode: str, see
     if verdict is not None:
         diags = [d for d in verdict.diagnostics if d not in diags] + diags
     if fmt is Format.json:
-        out: dict[str, Any] = {
-            "reason": result.reason, "message": result.message, "steps": result.steps,
-            "time": result.time, "wall": round(result.wall, 3),
-            "diagnostics": [d.to_json() for d in diags],
-            "marking": result.marking,
-            "summary": result.summary.to_json() if result.summary else None,
-        }
-        if verdict is not None:
-            out["replay"] = {"reproduced": verdict.reproduced, "message": verdict.message,
-                             "forced": result.forced}
-        typer.echo(json.dumps(out, indent=2))
+        _print_json(result, diags, verdict)
     else:
-        show(diags)
-        if result.summary is not None and not quiet:
-            typer.echo(render(result.summary, result.wall))
-        if not quiet or not result.ok:
-            typer.echo(f"{file}: {result.message}", err=True)
-        if verdict is not None:
-            extra = (f" ({result.forced} firing(s) forced against the data)"
-                     if result.forced else "")
-            typer.echo(f"replay: {verdict.message}{extra}", err=True)
+        _show(comp, diags, fmt)
+        _print_text(file, result, verdict, quiet)
         if tracer is not None and not quiet:
             typer.echo(f"trace: {tracer.count} events written to {trace}", err=True)
+    return _exit_code(result, cx, verdict)
+
+
+def _show(comp: Compilation, diags: list[Diagnostic], fmt: Format) -> None:
+    from rssm_dsl.diagnostics.render import render_text
+
+    if diags and fmt is Format.text:
+        typer.echo(render_text(diags, comp.program.line), err=True)
+
+
+def _unknown_device(system: System, targets: list[str]) -> str | None:
+    """The usage error for a --device or --device-option that matches no device."""
+    known = {d.id for d in system.devices()}
+    for target in targets:
+        if not any(fnmatchcase(k, target) for k in known):
+            return (f"rssmc: no device {target} in system {system.name} (devices: "
+                    f"{', '.join(sorted(known)) or 'none'})")
+    return None
+
+
+def _load_replay(comp: Compilation, rt: Runtime, replay: Path, mode: str,
+                 fmt: Format) -> tuple[Counterexample, list[int]] | int:
+    """The counterexample to replay and its transitions, or the exit code when it cannot be
+    replayed (the problem printed)."""
+    from rssm_dsl.interp.replay import ReplayFileError, load_counterexample, resolve_steps
+
+    try:
+        cx = load_counterexample(replay)
+    except ReplayFileError as e:
+        typer.echo(f"rssmc: --replay: {e}", err=True)
+        return EXIT_USAGE
+    forced, bad = resolve_steps(rt.net, cx.sequence(), str(replay))
+    if bad:
+        _show(comp, bad, fmt)
+        return EXIT_ERRORS
+    if mode != "deterministic":
+        typer.echo("rssmc: --replay runs in deterministic mode", err=True)
+        return EXIT_USAGE
+    return cx, forced
+
+
+def _print_json(result: RunResult, diags: list[Diagnostic], verdict: ReplayVerdict | None) -> None:
+    out: dict[str, Any] = {
+        "reason": result.reason, "message": result.message, "steps": result.steps,
+        "time": result.time, "wall": round(result.wall, 3),
+        "diagnostics": [d.to_json() for d in diags],
+        "marking": result.marking,
+        "summary": result.summary.to_json() if result.summary else None,
+    }
+    if verdict is not None:
+        out["replay"] = {"reproduced": verdict.reproduced, "message": verdict.message,
+                         "forced": result.forced}
+    typer.echo(json.dumps(out, indent=2))
+
+
+def _print_text(file: Path, result: RunResult, verdict: ReplayVerdict | None,
+                quiet: bool) -> None:
+    from rssm_dsl.interp.summary import render
+
+    if result.summary is not None and not quiet:
+        typer.echo(render(result.summary, result.wall))
+    if not quiet or not result.ok:
+        typer.echo(f"{file}: {result.message}", err=True)
+    if verdict is not None:
+        extra = (f" ({result.forced} firing(s) forced against the data)"
+                 if result.forced else "")
+        typer.echo(f"replay: {verdict.message}{extra}", err=True)
+
+
+def _exit_code(result: RunResult, cx: Counterexample | None,
+               verdict: ReplayVerdict | None) -> int:
     if result.reason == "interrupted":
         return EXIT_INTERRUPTED
     if verdict is not None:

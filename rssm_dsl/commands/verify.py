@@ -10,10 +10,9 @@ from typing import Annotated, Any
 
 import typer
 
-from rssm_dsl.cli import Format, guarded, report
+from rssm_dsl.commands.common import EXIT_USAGE, FileArg, Format, guarded, report
 
-FileArg = Annotated[Path, typer.Argument(help="The .rssm file of the system.", show_default=False)]
-EXIT_INCONCLUSIVE = 2
+EXIT_INCONCLUSIVE = EXIT_USAGE
 
 
 def verify_cmd(
@@ -49,7 +48,7 @@ def verify_cmd(
     def run() -> int:
         from rssm_dsl.hpn.flatten import flatten
         from rssm_dsl.pipeline import compile_file
-        from rssm_dsl.verify import VerifyOptions, render_json, render_text, verify
+        from rssm_dsl.verify import VerifyOptions, render_text, verify
         from rssm_dsl.verify.statespace import Progress
 
         if reduction not in ("auto", "on", "off", "compositional"):
@@ -90,7 +89,6 @@ def verify_cmd(
             if extra:
                 data["cross_check"] = extra
             typer.echo(json.dumps(data, indent=2, ensure_ascii=False))
-            _ = render_json  # the same record, printed with the cross-checks
         else:
             typer.echo(render_text(result, max_invariants=10_000 if show_invariants else 0))
             for line in text_extra:

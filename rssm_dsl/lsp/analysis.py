@@ -129,7 +129,6 @@ class Analysis:
     diagnostics: tuple[Diagnostic, ...]   # located in this file
     lazy_index: LazyIndex
     system: System | None             # the last good semantic model (maybe of an older text)
-    model_is_current: bool
     incremental: State | None = None  # for reparsing the next edit alone
     how: str = "full"                 # "full" or "incremental" (for tests and figures)
 
@@ -218,14 +217,14 @@ def analyze_text(uri: str, path: Path, display: str, text: str, version: int | N
         diag = Diagnostic("E003", "this file is binary, not RSSM text", _at_start(display),
                           "open a .rssm text file")
         return Analysis(uri, version, path, display, text, lines, LazyModule(None), None,
-                        (diag,), LazyIndex(None), kept_system, False)
+                        (diag,), LazyIndex(None), kept_system)
     if len(text) > MAX_LIVE_CHARS:
         diag = Diagnostic("E004", f"this file has {len(text) / 1e6:.1f} million characters; "
                           f"the editor analyses at most {MAX_LIVE_CHARS / 1e6:.1f} million",
                           _at_start(display),
                           "split the specification into imported files, or run `rssmc check`")
         return Analysis(uri, version, path, display, text, lines, LazyModule(None), None,
-                        (diag,), LazyIndex(None), kept_system, False)
+                        (diag,), LazyIndex(None), kept_system)
     overrides = dict(overrides)
     overrides[path.resolve()] = text
     state = previous.incremental if previous is not None else None
@@ -245,7 +244,6 @@ def analyze_text(uri: str, path: Path, display: str, text: str, version: int | N
     if syntax and root is not None:
         mine += _semantic_despite_syntax(program, display, syntax)
     mine = _finish(mine, root)
-    current = comp.system is not None
     index = LazyIndex(program)
     if previous is not None and root is None and previous.module is not None:
         # nothing usable was recovered: keep the outline and names of the last text
@@ -259,7 +257,7 @@ def analyze_text(uri: str, path: Path, display: str, text: str, version: int | N
         uri, version, path, display, text, lines,
         LazyModule(root if root is not None else (previous.module if previous else None)),
         program, tuple(mine), index,
-        comp.system if current else kept_system, current, new_state,
+        comp.system if comp.system is not None else kept_system, new_state,
     )
 
 
@@ -332,6 +330,6 @@ def _incremental(uri: str, path: Path, display: str, text: str, version: int | N
     return Analysis(
         uri, version, path, display, text, lines, LazyModule(got.state.module, shifts),
         got.program, tuple(mine), LazyIndex(got.program, shifts=shifts),
-        system if system is not None else kept_system, system is not None, got.state,
+        system if system is not None else kept_system, got.state,
         "incremental",
     )

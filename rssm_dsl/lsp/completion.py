@@ -80,49 +80,12 @@ def complete(module: ast.Module | None, index: SymbolIndex, text: str,
     system, agent, sub, behaviour = _enclosing(module, text, offset)
     items: list[lsp.CompletionItem] = []
     if sub is not None and agent is not None and system is not None:
-        inputs = [b.name for b in sub.buffers if b.direction is ast.Direction.INPUT]
-        outputs = [b.name for b in sub.buffers if b.direction is ast.Direction.OUTPUT]
-        behaviours = [b.name for b in sub.behaviours]
-        if trigger in ("from", "to"):
-            return _peers(agent, system, sub)
-        if trigger in ("initial", "switch", "->"):
-            out = [_item(b, CK.Method, "behaviour", "1") for b in behaviours]
-            if trigger == "->":
-                out.append(_item("end", CK.Keyword, "the subsystem ends", "2"))
-            return out
-        if trigger == "update":
-            return [_item(o, CK.Field, "output buffer", "1") for o in outputs] + \
-                [_item("memory", CK.Keyword, "the memory partial function", "2")]
-        if trigger == "send":
-            return [_item(o, CK.Field, "output buffer", "1") for o in outputs]
-        if trigger == "receive":
-            return [_item(i, CK.Field, "input buffer", "1") for i in inputs]
-        if trigger == "(" and before.endswith("new("):
-            return [_item(i, CK.Field, "input buffer", "1") for i in inputs]
-        scope = index.scope_at(module.path if module else "", offset)
-        for name, key in (scope.names.items() if scope else ()):
-            d = index.definitions.get(key)
-            items.append(_item(name, _KIND.get(key.split(":")[0], CK.Variable),
-                               d.detail if d else None, "1"))
-        if behaviour is not None:
-            for c in behaviour.conditions:
-                items.append(_item(c.name, CK.Event, f"{c.kind} condition", "2"))
-        for sw in sub.switches:
-            if sw.span.offset <= offset <= sw.span.end_offset:
-                src = next((b for b in sub.behaviours if b.name == sw.source), None)
-                if src is not None:
-                    for cd in src.conditions:
-                        items.append(_item(cd.name, CK.Event,
-                                           f"{cd.kind} condition of {src.name}", "1"))
+        narrowed = _narrowed(trigger, before, system, agent, sub)
+        if narrowed is not None:
+            return narrowed
+        items += _local(module, index, offset, sub, behaviour)
     type_only = trigger == ":"
-    for key, d in index.definitions.items():
-        prefix = key.split(":")[0]
-        if prefix == "type" or (prefix in ("const", "extern") and not type_only):
-            items.append(_item(d.name, _KIND[prefix], d.detail, "3"))
-        elif prefix == "device":
-            items.append(_item(d.name, CK.Interface, d.detail, "3"))
-    for name in SCALARS:
-        items.append(_item(name, CK.TypeParameter, "built-in type", "3"))
+    items += _global(index, type_only)
     if type_only:
         return [i for i in items if i.kind in (CK.Struct, CK.TypeParameter, CK.Interface)]
     for fn in BUILTIN_FUNCTIONS:
@@ -138,3 +101,61 @@ def complete(module: ast.Module | None, index: SymbolIndex, text: str,
             seen.add(it.label)
             unique.append(it)
     return unique
+
+
+def _narrowed(trigger: str, before: str, system: ast.SystemDecl, agent: ast.AgentDecl,
+              sub: ast.SubsystemDecl) -> list[lsp.CompletionItem] | None:
+    """What the word before the cursor asks for inside a subsystem (None: anything)."""
+    if trigger in ("from", "to"):
+        return _peers(agent, system, sub)
+    if trigger in ("initial", "switch", "->"):
+        out = [_item(b.name, CK.Method, "behaviour", "1") for b in sub.behaviours]
+        if trigger == "->":
+            out.append(_item("end", CK.Keyword, "the subsystem ends", "2"))
+        return out
+    inputs = [b.name for b in sub.buffers if b.direction is ast.Direction.INPUT]
+    outputs = [b.name for b in sub.buffers if b.direction is ast.Direction.OUTPUT]
+    if trigger == "update":
+        return [_item(o, CK.Field, "output buffer", "1") for o in outputs] + \
+            [_item("memory", CK.Keyword, "the memory partial function", "2")]
+    if trigger == "send":
+        return [_item(o, CK.Field, "output buffer", "1") for o in outputs]
+    if trigger == "receive" or (trigger == "(" and before.endswith("new(")):
+        return [_item(i, CK.Field, "input buffer", "1") for i in inputs]
+    return None
+
+
+def _local(module: ast.Module | None, index: SymbolIndex, offset: int, sub: ast.SubsystemDecl,
+           behaviour: ast.BehaviourDecl | None) -> list[lsp.CompletionItem]:
+    """The names in scope at the cursor and the conditions it can name."""
+    items: list[lsp.CompletionItem] = []
+    scope = index.scope_at(module.path if module else "", offset)
+    for name, key in (scope.names.items() if scope else ()):
+        d = index.definitions.get(key)
+        items.append(_item(name, _KIND.get(key.split(":")[0], CK.Variable),
+                           d.detail if d else None, "1"))
+    if behaviour is not None:
+        for c in behaviour.conditions:
+            items.append(_item(c.name, CK.Event, f"{c.kind} condition", "2"))
+    for sw in sub.switches:
+        if sw.span.offset <= offset <= sw.span.end_offset:
+            src = next((b for b in sub.behaviours if b.name == sw.source), None)
+            if src is not None:
+                for cd in src.conditions:
+                    items.append(_item(cd.name, CK.Event,
+                                       f"{cd.kind} condition of {src.name}", "1"))
+    return items
+
+
+def _global(index: SymbolIndex, type_only: bool) -> list[lsp.CompletionItem]:
+    """Types, devices, constants and external operations of the whole program."""
+    items: list[lsp.CompletionItem] = []
+    for key, d in index.definitions.items():
+        prefix = key.split(":")[0]
+        if prefix == "type" or (prefix in ("const", "extern") and not type_only):
+            items.append(_item(d.name, _KIND[prefix], d.detail, "3"))
+        elif prefix == "device":
+            items.append(_item(d.name, CK.Interface, d.detail, "3"))
+    for name in SCALARS:
+        items.append(_item(name, CK.TypeParameter, "built-in type", "3"))
+    return items

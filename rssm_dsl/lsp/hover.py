@@ -4,6 +4,8 @@ places)."""
 
 from __future__ import annotations
 
+from collections.abc import Callable
+
 from rssm_dsl.hpn import names as N
 from rssm_dsl.lsp.index import Definition
 from rssm_dsl.semantics.behaviours import combination_text
@@ -153,77 +155,102 @@ def hover_text(d: Definition, system: System | None,
     body = [head, _code(d.detail)]
     if system is None:
         return "\n\n".join(body)
-    m = _Model(system)
     prefix, _, rest = d.key.partition(":")
-    lines: list[str] = []
     _file, _, scoped = rest.partition("|")
     sysname, _, base = scoped.partition("/")
-    if prefix in ("agent", "sub", "buf", "mem", "param", "beh", "cond", "inst") \
-            and sysname != system.name:
-        return "\n\n".join(body)
-    if prefix == "agent":
-        a = m.agents.get(base)
-        if a is not None:
-            lines.append(f"agent a_{a.designator}: page `{N.page(a.designator)}` in H "
-                         f"(agent layer H_{a.designator}); subsystems "
-                         + ", ".join(f"`{s.id}`" for s in a.subsystems))
-    elif prefix == "sub":
-        s = m.subs.get(base)
-        if s is not None:
-            j = m.j[s.id]
-            freq = f" @ {s.frequency:g} Hz" if s.frequency else ""
-            lines.append(f"{_LETTER_TEXT[s.letter]} {_subsystem_symbol(s, j)} (`{s.id}`){freq}: "
-                         f"page `{N.page(j, s.name)}` in `{N.page(j)}` (subsystem layer "
-                         f"sH_{{{j},{s.name}}})")
-            lines.append(f"inputs nu = {len(s.inputs)}, outputs mu = {len(s.outputs)}; "
-                         "behaviours " + ", ".join(b.name for b in s.behaviours))
-    elif prefix == "inst":
-        dev = m.devices.get(base)
-        if dev is not None:
-            j = m.j[dev.id]
-            lines.append(f"{_LETTER_TEXT[dev.letter]} {dev.letter}_{{{j},{dev.name}}} "
-                         f"(`{dev.id}`, {dev.device_type}): device net "
-                         f"`{N.page(j, dev.name, sup='^' + dev.letter)}`")
-    elif prefix == "buf":
-        sid, tail = _split(base)
-        owner = m.owner(sid)
-        if owner is not None and tail:
-            lines += _buffer(m, owner, tail[0])
-    elif prefix in ("mem", "param"):
-        sid, tail = _split(base)
-        s = m.subs.get(sid)
-        if s is not None and tail:
-            var = next((x for x in (s.memory if prefix == "mem" else s.params)
-                        if x.name == tail[0]), None)
-            if var is not None:
-                lines.append(f"type {_type(var.type)}")
-                if prefix == "mem":
-                    mu1 = len(s.outputs) + 1
-                    j = m.j[s.id]
-                    lines.append(f"written by the memory partial function (psi = mu + 1 = "
-                                 f"{mu1}): pages " + ", ".join(
-                                     f"`{N.page(j, s.name, b.name, mu1, sup='^f')}`"
-                                     for b in s.behaviours))
-    elif prefix == "beh":
-        sid, tail = _split(base)
-        s = m.subs.get(sid)
-        if s is not None and tail:
-            lines += (_update(m, s, tail[0], update[1]) if update is not None
-                      else _behaviour(m, s, tail[0]))
-    elif prefix == "cond":
-        sid, tail = _split(base)
-        s = m.subs.get(sid)
-        if s is not None and len(tail) == 2:
-            lines += _condition(m, s, tail[0], tail[1])
-    elif prefix == "type":
+    if prefix == "type":
         t = dict(system.types).get(d.name)
-        if t is not None:
-            lines.append(f"type {_type(t)}")
-    elif prefix == "extern":
+        return "\n\n".join(body + ([f"type {_type(t)}"] if t is not None else []))
+    if prefix == "extern":
         ext = next((e for e in system.externs if e.name == d.name), None)
-        if ext is not None:
-            lines.append(f"bound to `{ext.binding}`")
-    return "\n\n".join(body + lines)
+        return "\n\n".join(body + ([f"bound to `{ext.binding}`"] if ext is not None else []))
+    if prefix not in _IN_SYSTEM or sysname != system.name:
+        return "\n\n".join(body)
+    return "\n\n".join(body + _IN_SYSTEM[prefix](_Model(system), prefix, base, update))
+
+
+_Update = tuple[str, str] | None
+
+
+def _agent_lines(m: _Model, prefix: str, base: str, update: _Update) -> list[str]:
+    a = m.agents.get(base)
+    if a is None:
+        return []
+    return [f"agent a_{a.designator}: page `{N.page(a.designator)}` in H "
+            f"(agent layer H_{a.designator}); subsystems "
+            + ", ".join(f"`{s.id}`" for s in a.subsystems)]
+
+
+def _subsystem_lines(m: _Model, prefix: str, base: str, update: _Update) -> list[str]:
+    s = m.subs.get(base)
+    if s is None:
+        return []
+    j = m.j[s.id]
+    freq = f" @ {s.frequency:g} Hz" if s.frequency else ""
+    return [f"{_LETTER_TEXT[s.letter]} {_subsystem_symbol(s, j)} (`{s.id}`){freq}: "
+            f"page `{N.page(j, s.name)}` in `{N.page(j)}` (subsystem layer "
+            f"sH_{{{j},{s.name}}})",
+            f"inputs nu = {len(s.inputs)}, outputs mu = {len(s.outputs)}; "
+            "behaviours " + ", ".join(b.name for b in s.behaviours)]
+
+
+def _device_lines(m: _Model, prefix: str, base: str, update: _Update) -> list[str]:
+    dev = m.devices.get(base)
+    if dev is None:
+        return []
+    j = m.j[dev.id]
+    return [f"{_LETTER_TEXT[dev.letter]} {dev.letter}_{{{j},{dev.name}}} "
+            f"(`{dev.id}`, {dev.device_type}): device net "
+            f"`{N.page(j, dev.name, sup='^' + dev.letter)}`"]
+
+
+def _buffer_lines(m: _Model, prefix: str, base: str, update: _Update) -> list[str]:
+    sid, tail = _split(base)
+    owner = m.owner(sid)
+    return _buffer(m, owner, tail[0]) if owner is not None and tail else []
+
+
+def _variable_lines(m: _Model, prefix: str, base: str, update: _Update) -> list[str]:
+    """A memory variable or a parameter."""
+    sid, tail = _split(base)
+    s = m.subs.get(sid)
+    if s is None or not tail:
+        return []
+    var = next((x for x in (s.memory if prefix == "mem" else s.params) if x.name == tail[0]),
+               None)
+    if var is None:
+        return []
+    lines = [f"type {_type(var.type)}"]
+    if prefix == "mem":
+        mu1 = len(s.outputs) + 1
+        j = m.j[s.id]
+        lines.append(f"written by the memory partial function (psi = mu + 1 = "
+                     f"{mu1}): pages " + ", ".join(
+                         f"`{N.page(j, s.name, b.name, mu1, sup='^f')}`"
+                         for b in s.behaviours))
+    return lines
+
+
+def _behaviour_lines(m: _Model, prefix: str, base: str, update: _Update) -> list[str]:
+    sid, tail = _split(base)
+    s = m.subs.get(sid)
+    if s is None or not tail:
+        return []
+    return _update(m, s, tail[0], update[1]) if update is not None else _behaviour(m, s, tail[0])
+
+
+def _condition_lines(m: _Model, prefix: str, base: str, update: _Update) -> list[str]:
+    sid, tail = _split(base)
+    s = m.subs.get(sid)
+    return _condition(m, s, tail[0], tail[1]) if s is not None and len(tail) == 2 else []
+
+
+# the definitions inside a system (key prefix -> the lines about them in the HPN)
+_IN_SYSTEM: dict[str, Callable[[_Model, str, str, _Update], list[str]]] = {
+    "agent": _agent_lines, "sub": _subsystem_lines, "inst": _device_lines,
+    "buf": _buffer_lines, "mem": _variable_lines, "param": _variable_lines,
+    "beh": _behaviour_lines, "cond": _condition_lines,
+}
 
 
 def update_hover(d: Definition, behaviour: str, target: str, system: System | None) -> str:

@@ -138,62 +138,25 @@ def reparse(state: State, text: str, display: str,
     old = state.text
     if state.steps >= MAX_STEPS or not unchanged_imports(state.program):
         return None
-    n0, n1 = len(old), len(text)
-    limit = min(n0, n1)
-    # common prefix and suffix, compared in blocks first (string comparison runs in C)
-    step = 2048
-    a = 0
-    while a + step <= limit and old[a:a + step] == text[a:a + step]:
-        a += step
-    while a < limit and old[a] == text[a]:
-        a += 1
-    b = 0
-    while b + step <= limit - a and old[n0 - b - step:n0 - b] == text[n1 - b - step:n1 - b]:
-        b += step
-    while b < limit - a and old[n0 - b - 1] == text[n1 - b - 1]:
-        b += 1
-    old_end, new_end = n0 - b, n1 - b
-    d_chars = n1 - n0
+    a, b = _common_ends(old, text)
+    old_end, new_end = len(old) - b, len(text) - b
+    d_chars = len(text) - len(old)
     d_lines = text.count("\n", a, new_end) - old.count("\n", a, old_end)
     systems = [d for d in state.module.decls if isinstance(d, ast.SystemDecl)]
     if len(systems) != 1:
         return None
     sd = systems[0]
     shifts = state.shifts
-    chosen: int | None = None
-    chunk_start = close = 0
-    for k, agent in enumerate(sd.agents):
-        name = shifts.span(agent.name_span)
-        start = _keyword_before(old, "agent", name.offset)
-        if start is None:
-            return None
-        if start >= a:
-            break
-        end = block_close(old, name.end_offset)
-        if end <= start or old[end - 1] != "}":
-            return None
-        if a > start and old_end <= end - 1:
-            chosen, chunk_start, close = k, start, end
-            break
-    if chosen is None:
+    found = _edited_agent(sd, shifts, old, a, old_end)
+    if found is None:
         return None
+    chosen, chunk_start, close = found
     new_close = close + d_chars
     if not _next_line_follows(text, new_close):
         return None
-    # the system's frame: `system NAME {` ... `}` around the agent
-    sys_name = shifts.span(sd.name_span)
-    sys_start = _keyword_before(old, "system", sys_name.offset)
-    if sys_start is None:
+    masked = _masked_frame(sd, shifts, old, text, chunk_start, new_close, d_chars)
+    if masked is None:
         return None
-    body = text.find("{", sys_name.end_offset) + 1
-    last_end = block_close(old, shifts.span(sd.agents[-1].name_span).end_offset)
-    sys_close = block_end(old, last_end) - 1 + d_chars
-    if body <= 0 or not (body <= chunk_start < new_close <= sys_close) \
-            or text[sys_close] != "}":
-        return None
-    masked = (_mask(text[:sys_start]) + text[sys_start:body] + _mask(text[body:chunk_start])
-              + text[chunk_start:new_close] + _mask(text[new_close:sys_close]) + "}"
-              + _mask(text[sys_close + 1:]))
     pseudo = f"{display}#{next(_serial)}"
     source = SourceFile(pseudo, masked)
     result = parse(source)
@@ -223,6 +186,63 @@ def reparse(state: State, text: str, display: str,
                       imports=dict(prog.imports))
     return Reparsed(State(text, module, new_shifts, program, state.steps + 1, broken),
                     program)
+
+
+def _common_ends(old: str, text: str) -> tuple[int, int]:
+    """The lengths of the common prefix and of the common suffix (not overlapping it),
+    compared in blocks first (string comparison runs in C)."""
+    n0, n1 = len(old), len(text)
+    limit = min(n0, n1)
+    step = 2048
+    a = 0
+    while a + step <= limit and old[a:a + step] == text[a:a + step]:
+        a += step
+    while a < limit and old[a] == text[a]:
+        a += 1
+    b = 0
+    while b + step <= limit - a and old[n0 - b - step:n0 - b] == text[n1 - b - step:n1 - b]:
+        b += step
+    while b < limit - a and old[n0 - b - 1] == text[n1 - b - 1]:
+        b += 1
+    return a, b
+
+
+def _edited_agent(sd: ast.SystemDecl, shifts: ShiftMap, old: str, a: int,
+                  old_end: int) -> tuple[int, int, int] | None:
+    """The agent the edit [a, old_end) of the old text lies in: (its position in the
+    system, the offset of its `agent` keyword, the offset after its `}`), or None."""
+    for k, agent in enumerate(sd.agents):
+        name = shifts.span(agent.name_span)
+        start = _keyword_before(old, "agent", name.offset)
+        if start is None:
+            return None
+        if start >= a:
+            return None
+        end = block_close(old, name.end_offset)
+        if end <= start or old[end - 1] != "}":
+            return None
+        if a > start and old_end <= end - 1:
+            return k, start, end
+    return None
+
+
+def _masked_frame(sd: ast.SystemDecl, shifts: ShiftMap, old: str, text: str, chunk_start: int,
+                  new_close: int, d_chars: int) -> str | None:
+    """The new text with everything blanked but the system's frame (`system NAME {` ...
+    `}`) and the agent in [chunk_start, new_close), or None when the frame is not found."""
+    sys_name = shifts.span(sd.name_span)
+    sys_start = _keyword_before(old, "system", sys_name.offset)
+    if sys_start is None:
+        return None
+    body = text.find("{", sys_name.end_offset) + 1
+    last_end = block_close(old, shifts.span(sd.agents[-1].name_span).end_offset)
+    sys_close = block_end(old, last_end) - 1 + d_chars
+    if body <= 0 or not (body <= chunk_start < new_close <= sys_close) \
+            or text[sys_close] != "}":
+        return None
+    return (_mask(text[:sys_start]) + text[sys_start:body] + _mask(text[body:chunk_start])
+            + text[chunk_start:new_close] + _mask(text[new_close:sys_close]) + "}"
+            + _mask(text[sys_close + 1:]))
 
 
 # ---------------------------------------------------------------------- mapping spans out

@@ -20,7 +20,7 @@ input buffer x.
 from __future__ import annotations
 
 import re
-from collections.abc import Iterable, Iterator
+from collections.abc import Iterator
 from dataclasses import dataclass, field
 from pathlib import Path
 
@@ -362,17 +362,20 @@ class IndexBuilder:
                         self._types(p.type)
                     self._types(d.result)
                 case ast.DeviceDecl():
-                    scope = {p.name: f"devparam:{d.name}.{p.name}" for p in d.params}
-                    for b in d.buffers:
-                        self._types(b.type)
-                        if b.init is not None:
-                            self._expr(b.init, scope)
-                    for dp in d.params:
-                        self._types(dp.type)
-                        self._expr(dp.value, scope)
+                    self._device(d)
                 case ast.SystemDecl():
                     for a in d.agents:
                         self._agent(d, a, src)
+
+    def _device(self, d: ast.DeviceDecl) -> None:
+        scope = {p.name: f"devparam:{d.name}.{p.name}" for p in d.params}
+        for b in d.buffers:
+            self._types(b.type)
+            if b.init is not None:
+                self._expr(b.init, scope)
+        for dp in d.params:
+            self._types(dp.type)
+            self._expr(dp.value, scope)
 
     def _import(self, imp: ast.Import, m: ast.Module) -> None:
         path = Path(m.path)
@@ -451,6 +454,15 @@ class IndexBuilder:
             start = min(s.span.offset, s.name_span.offset)
             scope_span = src.span(start, block_close(src.text, s.name_span.end_offset))
         self.index.scopes.append((scope_span, Scope(skey, dict(names))))
+        self._variables(sd, a, s, names)
+        for bd in s.behaviours:
+            self._behaviour(bd, base, names)
+        self._switches(s, base, names)
+
+    def _variables(self, sd: ast.SystemDecl, a: ast.AgentDecl, s: ast.SubsystemDecl,
+                   names: dict[str, str]) -> None:
+        """The types and initial values of the parameters, memory and buffers of `s`, and
+        the peers of its buffers."""
         for p in s.params:
             self._types(p.type)
             self._expr(p.value, names)
@@ -464,9 +476,10 @@ class IndexBuilder:
                 self._expr(b.init, names)
             if b.peer is not None:
                 self._peer(sd, a, b.peer)
+
+    def _switches(self, s: ast.SubsystemDecl, base: str, names: dict[str, str]) -> None:
+        """The behaviours named by `initial` and the switches, and the switch conditions."""
         behaviours = {bd.name: f"beh:{base}.{bd.name}" for bd in s.behaviours}
-        for bd in s.behaviours:
-            self._behaviour(bd, base, names)
         for ini in s.initial:
             if ini.behaviour in behaviours:
                 self.use(ini.behaviour_span, behaviours[ini.behaviour])
@@ -574,18 +587,3 @@ def build_index(program: Program) -> SymbolIndex:
 
 
 BUILTIN_NAMES: tuple[str, ...] = (*BUILTIN_FUNCTIONS, *BUILTIN_CONSTS)
-
-
-def merge(indexes: Iterable[SymbolIndex]) -> SymbolIndex:
-    """One index over several programs (occurrences deduplicated by span and key)."""
-    out = SymbolIndex()
-    seen: set[tuple[Span, str]] = set()
-    for ix in indexes:
-        for key, d in ix.definitions.items():
-            out.definitions.setdefault(key, d)
-        for file, occs in ix.occurrences.items():
-            for o in occs:
-                if (o.span, o.key) not in seen:
-                    seen.add((o.span, o.key))
-                    out.occurrences.setdefault(file, []).append(o)
-    return out

@@ -52,10 +52,6 @@ class LineIndex:
             i = find("\n", i + 1)
         object.__setattr__(self, "starts", tuple(starts))
 
-    @property
-    def line_count(self) -> int:
-        return len(self.starts)
-
     def line(self, n: int) -> str:
         """Line n (0-based) without its line break; '' out of range."""
         if n < 0 or n >= len(self.starts):

@@ -4,6 +4,7 @@ from __future__ import annotations
 
 from dataclasses import dataclass, field
 
+from rssm_core.modes import Mode
 from rssm_dsl.diagnostics import DiagnosticBag, Related
 from rssm_dsl.semantics.declarations import DeclarationPass, Globals
 from rssm_dsl.semantics.model import DEVICE_LETTER, KIND_LETTER, Buffer, Variable
@@ -181,7 +182,7 @@ class StructurePass:
                 if got is not None and not assignable(got, bt):
                     self.bag.error("E201", f"buffer '{b.name}' is {bt} but its initial value is "
                                    f"{got}", b.init.span)
-            mode = b.mode or ast.Mode.NONBLOCKING
+            mode = b.mode or Mode.NONBLOCKING
             shell.buffers.append(Buffer(shell.id, b.name, b.direction, bt, mode, b.init, b.span))
             shell.peers[b.name] = b.peer
 

@@ -13,6 +13,7 @@ from typing import Any, TypeVar
 
 from lark import Token
 
+from rssm_core.modes import Mode
 from rssm_dsl.source import SourceFile, Span
 from rssm_dsl.syntax import ast
 
@@ -86,9 +87,6 @@ class NestingTooDeep(Exception):
 def _unquote(s: str) -> str:
     body = s[1:-1]
     return body.encode("utf-8").decode("unicode_escape") if "\\" in body else body
-
-
-_BINARY_RULES = {"or_expr": "or", "and_expr": "and"}
 
 
 class AstBuilder:
@@ -255,8 +253,8 @@ class AstBuilder:
     def r_peer_arrow(self, t: _Node, k: list[Any]) -> tuple[str, Span]:
         return str(k[0]), self._tok(k[0])
 
-    def r_mode(self, t: _Node, k: list[Any]) -> tuple[ast.Mode, Span]:
-        return ast.Mode(str(k[0])), self._tok(k[0])
+    def r_mode(self, t: _Node, k: list[Any]) -> tuple[Mode, Span]:
+        return Mode(str(k[0])), self._tok(k[0])
 
     def r_peer(self, t: _Node, k: list[Any]) -> ast.PeerRef:
         return ast.PeerRef(self._span(t), tuple(str(x) for x in k))

@@ -162,9 +162,6 @@ class _Formatter:
         self.pending_align: _Bracket | None = None  # opened by the previous token
 
     # ------------------------------------------------------------ classification
-    def _is_keyword(self, tok: Token | None, *words: str) -> bool:
-        return tok is not None and str(tok) in words and str(tok) in keywords()
-
     def _expr_end(self, tok: Token | None, kind: str) -> bool:
         return tok is not None and (tok.type in _VALUE_TYPES or kind == "lit}"
                                     or str(tok) in _EXPR_END_WORDS)

@@ -120,7 +120,6 @@ class _Driver:
         self.source = source
         self.diagnostics: list[Diagnostic] = []
         self.accepted_since_error = 1_000_000
-        self.gave_up = False
 
     # -- reporting
     def _report(self, code: str, message: str, span: Span, hint: str | None = None) -> None:

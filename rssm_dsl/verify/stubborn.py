@@ -67,6 +67,7 @@ from __future__ import annotations
 
 import time
 from collections import deque
+from collections.abc import Callable
 
 import numpy as np
 
@@ -205,32 +206,35 @@ class StubbornExplorer:
         progress: ProgressCallback | None = None,
         keep_graph: bool = False,
     ) -> SearchResult:
-        start = time.monotonic()
-        deadline = None if time_limit is None else start + time_limit
-        nb = self.nb
-        pre, post, produce = self.pre, self.post, self.produce
         proviso = self.proviso and self.reduce
         keep_graph = keep_graph or proviso
-        m0 = nb.initial
-        en0 = self.initial_enabled(m0)
-        index: dict[int, int] = {m0: 0}
-        parent: list[int] = [-1]
-        via: list[int] = [-1]
-        markings: list[int] = [m0]
-        enabled_of: list[int] = [en0]        # kept for the proviso's re-expansions
-        fired_of: list[int] = [0]
-        queue: deque[tuple[int, int, int]] = deque([(m0, en0, 0)])
-        depth_of: list[int] = [0]
-        deadlocks: list[int] = []
-        final_deadlocks = 0
-        unsafe: tuple[int, int, int] | None = None
-        stopped: str | None = None
-        last_report = 0.0
-        count = 0
-        e_src: list[int] = []
-        e_dst: list[int] = []
-        e_trans: list[int] = []
-        full_expansions = 0
+        clock = _Clock(time.monotonic(), time_limit, progress,
+                       "stubborn" if self.reduce else "python")
+        m0 = self.nb.initial
+        st = _Search(m0, self.initial_enabled(m0))
+        expand = self._expander(st, keep_graph, proviso)
+        while True:
+            stopped = self._breadth_first(st, expand, max_states, clock, proviso)
+            if stopped is not None or not proviso:
+                break
+            # cycle proviso: every cycle of partly expanded markings gets one expanded fully
+            if not self._expand_cycles(st, expand):
+                break
+            if clock.past_deadline():
+                stopped = clock.timeout()
+                break
+        return self._result(st, stopped, keep_graph, max_counterexamples, clock.start)
+
+    def _expander(self, st: _Search, keep_graph: bool, proviso: bool,
+                  ) -> Callable[[int, int, int, int], int]:
+        """The function that fires a set of transitions in a marking and records what it
+        finds in `st` (its lists bound once: it runs for every state)."""
+        pre, post = self.pre, self.post
+        index, markings, parent, via, depth_of = st.index, st.markings, st.parent, st.via, \
+            st.depth_of
+        enabled_of, fired_of, queue = st.enabled_of, st.fired_of, st.queue
+        e_src, e_dst, e_trans = st.e_src, st.e_dst, st.e_trans
+        successor_enabled = self.successor_enabled
 
         def expand(i: int, m: int, en: int, fire: int) -> int:
             """Fire ``fire`` in marking ``m`` (state ``i``); the number of firings."""
@@ -244,7 +248,7 @@ class StubbornExplorer:
                     parent.append(i)
                     via.append(t)
                     depth_of.append(depth_of[i] + 1)
-                    en2 = self.successor_enabled(m2, en, t)
+                    en2 = successor_enabled(m2, en, t)
                     if proviso:
                         enabled_of.append(en2)
                         fired_of.append(0)
@@ -255,88 +259,136 @@ class StubbornExplorer:
                     e_trans.append(t)
             return fire.bit_count()
 
-        edges = 0
-        while True:
-            while queue:
-                m, en, i = queue.popleft()
-                count += 1
-                if en == 0:
-                    if nb.is_final(m):
-                        final_deadlocks += 1
-                    else:
-                        deadlocks.append(i)
-                    continue
-                for t in bits(en):
-                    clash = m & produce[t]
-                    if clash:
-                        unsafe = (i, t, clash)
-                        break
-                if unsafe is not None:
-                    stopped = "stopped at the first unsafe firing"
-                    break
-                fire = self.stubborn(m, en)
-                if proviso:
-                    fired_of[i] = fire
-                edges += expand(i, m, en, fire)
-                if len(markings) > max_states:
-                    stopped = f"state limit of {max_states} states reached"
-                    break
-                if count & 1023 == 0:
-                    now = time.monotonic()
-                    if deadline is not None and now > deadline:
-                        stopped = f"time limit of {time_limit} s reached"
-                        break
-                    if progress is not None and now - last_report > 0.5:
-                        last_report = now
-                        progress(Progress(len(markings), edges, depth_of[i], len(queue),
-                                          now - start,
-                                          "stubborn" if self.reduce else "python"))
-            if stopped is not None or not proviso:
-                break
-            # cycle proviso: every cycle of partly expanded markings gets one expanded fully
-            breakers = _cycle_breakers(len(markings), e_src, e_dst,
-                                       [fired_of[v] != enabled_of[v]
-                                        for v in range(len(markings))])
-            if not breakers:
-                break
-            for v in breakers:
-                rest = enabled_of[v] & ~fired_of[v]
-                fired_of[v] = enabled_of[v]
-                full_expansions += 1
-                edges += expand(v, markings[v], enabled_of[v], rest)
-            if deadline is not None and time.monotonic() > deadline:
-                stopped = f"time limit of {time_limit} s reached"
-                break
+        return expand
 
-        def path(k: int) -> tuple[int, ...]:
-            steps: list[int] = []
-            while k > 0:
-                steps.append(via[k])
-                k = parent[k]
-            return tuple(reversed(steps))
+    def _breadth_first(self, st: _Search, expand: Callable[[int, int, int, int], int],
+                       max_states: int, clock: _Clock, proviso: bool) -> str | None:
+        """Explore the queue to its end; why the search stopped early, or None."""
+        nb, produce, stubborn = self.nb, self.produce, self.stubborn
+        queue, markings, fired_of = st.queue, st.markings, st.fired_of
+        count = 0
+        while queue:
+            m, en, i = queue.popleft()
+            count += 1
+            if en == 0:
+                if nb.is_final(m):
+                    st.final_deadlocks += 1
+                else:
+                    st.deadlocks.append(i)
+                continue
+            for t in bits(en):
+                clash = m & produce[t]
+                if clash:
+                    st.unsafe = (i, t, clash)
+                    return "stopped at the first unsafe firing"
+            fire = stubborn(m, en)
+            if proviso:
+                fired_of[i] = fire
+            st.edges += expand(i, m, en, fire)
+            if len(markings) > max_states:
+                return f"state limit of {max_states} states reached"
+            if count & 1023 == 0:
+                if clock.past_deadline():
+                    return clock.timeout()
+                clock.report(st, i)
+        return None
 
-        traces = [Trace(path(k), markings[k]) for k in deadlocks[:max_counterexamples]]
+    def _expand_cycles(self, st: _Search, expand: Callable[[int, int, int, int], int]) -> bool:
+        """Expand fully one marking of each cycle of partly expanded markings; False when
+        there is no such cycle (the search is over)."""
+        n = len(st.markings)
+        breakers = _cycle_breakers(n, st.e_src, st.e_dst,
+                                   [st.fired_of[v] != st.enabled_of[v] for v in range(n)])
+        for v in breakers:
+            rest = st.enabled_of[v] & ~st.fired_of[v]
+            st.fired_of[v] = st.enabled_of[v]
+            st.full_expansions += 1
+            st.edges += expand(v, st.markings[v], st.enabled_of[v], rest)
+        return bool(breakers)
+
+    def _result(self, st: _Search, stopped: str | None, keep_graph: bool,
+                max_counterexamples: int, start: float) -> SearchResult:
+        markings = st.markings
+        traces = [Trace(st.path(k), markings[k]) for k in st.deadlocks[:max_counterexamples]]
         unsafe_trace = None
-        if unsafe is not None:
-            k, t, clash = unsafe
-            unsafe_trace = Trace((*path(k), t), markings[k], t, clash)
+        if st.unsafe is not None:
+            k, t, clash = st.unsafe
+            unsafe_trace = Trace((*st.path(k), t), markings[k], t, clash)
         graph = None
         if keep_graph and stopped is None:
-            nw = nb.nwords
+            nw = self.nb.nwords
             states = np.array([to_words(x, nw) for x in markings],
                               dtype=np.uint64).reshape(len(markings), nw)
             graph = Graph(
-                states=states, parent=np.array(parent, dtype=np.int32),
-                via=np.array(via, dtype=np.int32), src=np.array(e_src, dtype=np.int32),
-                dst=np.array(e_dst, dtype=np.int32), trans=np.array(e_trans, dtype=np.int32))
+                states=states, parent=np.array(st.parent, dtype=np.int32),
+                via=np.array(st.via, dtype=np.int32), src=np.array(st.e_src, dtype=np.int32),
+                dst=np.array(st.e_dst, dtype=np.int32),
+                trans=np.array(st.e_trans, dtype=np.int32))
         return SearchResult(
             method="stubborn" if self.reduce else "python", states=len(markings),
-            edges=edges,
-            depth=max(depth_of), complete=stopped is None, stopped=stopped,
-            seconds=time.monotonic() - start, deadlocks=traces, deadlock_count=len(deadlocks),
-            final_deadlock_count=final_deadlocks, unsafe=unsafe_trace, graph=graph,
-            full_expansions=full_expansions,
+            edges=st.edges,
+            depth=max(st.depth_of), complete=stopped is None, stopped=stopped,
+            seconds=time.monotonic() - start, deadlocks=traces,
+            deadlock_count=len(st.deadlocks), final_deadlock_count=st.final_deadlocks,
+            unsafe=unsafe_trace, graph=graph, full_expansions=st.full_expansions,
         )
+
+
+class _Search:
+    """The state of one search: the markings found (state k is ``markings[k]``), how each
+    was first reached, what was enabled and fired in each (for the cycle proviso), the
+    edges (for the graph and the proviso), the queue and what was found."""
+
+    def __init__(self, m0: int, en0: int) -> None:
+        self.index: dict[int, int] = {m0: 0}
+        self.markings: list[int] = [m0]
+        self.parent: list[int] = [-1]
+        self.via: list[int] = [-1]
+        self.depth_of: list[int] = [0]
+        self.enabled_of: list[int] = [en0]        # kept for the proviso's re-expansions
+        self.fired_of: list[int] = [0]
+        self.queue: deque[tuple[int, int, int]] = deque([(m0, en0, 0)])
+        self.e_src: list[int] = []
+        self.e_dst: list[int] = []
+        self.e_trans: list[int] = []
+        self.edges = 0
+        self.full_expansions = 0
+        self.deadlocks: list[int] = []
+        self.final_deadlocks = 0
+        self.unsafe: tuple[int, int, int] | None = None   # (state, transition, places)
+
+    def path(self, k: int) -> tuple[int, ...]:
+        steps: list[int] = []
+        while k > 0:
+            steps.append(self.via[k])
+            k = self.parent[k]
+        return tuple(reversed(steps))
+
+
+class _Clock:
+    """The time limit and the progress reports of a search."""
+
+    def __init__(self, start: float, time_limit: float | None,
+                 progress: ProgressCallback | None, method: str) -> None:
+        self.start = start
+        self.time_limit = time_limit
+        self.deadline = None if time_limit is None else start + time_limit
+        self.progress = progress
+        self.method = method
+        self.last_report = 0.0
+
+    def past_deadline(self) -> bool:
+        return self.deadline is not None and time.monotonic() > self.deadline
+
+    def timeout(self) -> str:
+        return f"time limit of {self.time_limit} s reached"
+
+    def report(self, st: _Search, i: int) -> None:
+        now = time.monotonic()
+        if self.progress is not None and now - self.last_report > 0.5:
+            self.last_report = now
+            self.progress(Progress(len(st.markings), st.edges, st.depth_of[i], len(st.queue),
+                                   now - self.start, self.method))
 
 
 def _cycle_breakers(n: int, src: list[int], dst: list[int], partial: list[bool]) -> list[int]:

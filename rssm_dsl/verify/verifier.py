@@ -32,14 +32,14 @@ a final marking is the system having finished, not an error.
 from __future__ import annotations
 
 import time
-from collections.abc import Collection
+from collections.abc import Callable, Collection
 from dataclasses import dataclass
 
-from rssm_dsl.hpn.flat import FlatNet
+from rssm_dsl.hpn.flat import FlatNet, FlatTransition
 from rssm_dsl.verify.compose.check import ComposeResult, compose_check
 from rssm_dsl.verify.invariants import DEFAULT_MAX_ROWS, InvariantResult, place_invariants
 from rssm_dsl.verify.netbits import NetBits, bits, to_mask
-from rssm_dsl.verify.progress import ProgressResult, check_progress, subsystems_of
+from rssm_dsl.verify.progress import check_progress, subsystems_of
 from rssm_dsl.verify.report import (
     Counterexample,
     InvariantLine,
@@ -47,7 +47,7 @@ from rssm_dsl.verify.report import (
     VerifyReport,
     marking_labels,
 )
-from rssm_dsl.verify.statespace import ProgressCallback, SearchResult, Trace, explore_full
+from rssm_dsl.verify.statespace import Graph, ProgressCallback, SearchResult, Trace, explore_full
 from rssm_dsl.verify.stubborn import explore_reduced
 
 REDUCTIONS = ("auto", "on", "off", "compositional")
@@ -84,73 +84,17 @@ def verify(net: FlatNet, options: VerifyOptions | None = None) -> VerifyReport:
 
     nb = NetBits.of(net)
     notes: list[str] = []
-
-    inv: InvariantResult | None = None
-    if opts.invariants:
-        budget = remaining()
-        inv = place_invariants(net, opts.max_invariant_rows,
-                               opts.invariant_time if budget is None
-                               else min(budget / 3, opts.invariant_time))
-        if inv.message:
-            notes.append(f"place invariants: {inv.message}")
+    inv = _invariants(net, opts, remaining(), notes) if opts.invariants else None
     safe_mask = to_mask(inv.safe_places) if inv else 0
     safe_by_invariants = inv is not None and inv.proves_safe(nb.nplaces)
-
-    full: SearchResult | None = None
-    reduced: SearchResult | None = None
-    comp: ComposeResult | None = None
-    if opts.reduction in ("auto", "off"):
-        limit = opts.max_states
-        if opts.reduction == "auto":
-            limit = min(limit, opts.auto_full_states, max(10_000, opts.auto_full_words // nb.nwords))
-        full = explore_full(nb, limit, remaining(), keep_graph=opts.check_progress,
-                            max_counterexamples=opts.max_counterexamples,
-                            progress=opts.on_progress)
-        if full.stopped and full.unsafe is None:
-            notes.append(f"full exploration: {full.stopped}")
-    if opts.reduction == "compositional" or (
-            opts.reduction == "auto" and full is not None and not full.complete
-            and full.unsafe is None and not full.deadlocks
-            and "state limit" in (full.stopped or "")):
-        comp, comp_notes = _compositional(net, nb, opts, remaining())
-        notes += comp_notes
-    if opts.reduction == "on" or (
-            opts.reduction == "auto" and full is not None and not full.complete
-            and full.unsafe is None and not full.deadlocks and (
-                comp is None or not comp.complete or comp.safe is False
-                or comp.deadlock_free is False)):
-        # stubborn sets: the verdict when nothing else gave one, else a counterexample
-        reduced = explore_reduced(nb, safe_mask, opts.max_states, remaining(),
-                                  opts.max_counterexamples, opts.on_progress,
-                                  for_progress=opts.check_progress and comp is None)
-        notes.append(f"stubborn-set exploration: {reduced.states} states")
+    full, comp, reduced = _searches(net, nb, opts, safe_mask, remaining, notes)
     deciding = reduced if reduced is not None else full
-    if reduced is not None and reduced.stopped and reduced.unsafe is None:
-        notes.append(f"stubborn-set exploration: {reduced.stopped}")
     if deciding is None:          # compositional only
         deciding = SearchResult("none", 0, 0, 0, False, None, 0.0, [], 0, 0, None)
     by_comp = comp is not None and comp.complete
 
-    # safeness
     unsafe_trace = deciding.unsafe or (full.unsafe if full else None)
-    safe: bool | None
-    safe_by: str | None
-    if unsafe_trace is not None:
-        safe, safe_by = False, ("full exploration" if deciding is full else
-                                "stubborn-set exploration")
-    elif comp is not None and comp.safe is False:
-        safe, safe_by = False, "the compositional check"
-    elif safe_by_invariants:
-        safe, safe_by = True, "place invariants"
-    elif deciding.complete:
-        safe, safe_by = True, ("full exploration" if deciding is full else
-                               "stubborn-set exploration")
-    elif comp is not None and comp.safe:
-        safe, safe_by = True, "the compositional check"
-    else:
-        safe, safe_by = None, None
-
-    # deadlocks
+    safe, safe_by = _safeness(unsafe_trace, deciding, full, comp, safe_by_invariants)
     dead_traces = deciding.deadlocks or (full.deadlocks if full else [])
     dead_count = max(deciding.deadlock_count, full.deadlock_count if full else 0)
     deadlock_free: bool | None
@@ -165,54 +109,15 @@ def verify(net: FlatNet, options: VerifyOptions | None = None) -> VerifyReport:
     else:
         deadlock_free = None
 
-    # progress, dead transitions, unreachable behaviours: full graph only
-    progress_result: ProgressResult | None = None
-    progress_ok: bool | None = None
-    progress_lost: tuple[str, ...] = ()
-    progress_checked: tuple[str, ...] = ()
-    dead_transitions = None
-    unreachable = None
-    if full is not None and full.complete:
-        assert full.fired is not None and full.ever_marked is not None
-        dead_transitions = tuple(t for t in net.transitions if t.index not in full.fired)
-        unreachable = _unreachable_behaviours(net, _reached(net, full.fired, full.ever_marked))
-    elif comp is not None and comp.detail_complete:
-        unreachable = _unreachable_behaviours(net, comp.reached)
-        notes.append("dead transitions need the full state space (the compositional check "
-                     "decides reachable behaviours only)")
-    elif (reduced is not None and reduced.complete) or by_comp:
-        notes.append("dead transitions and unreachable behaviours need the full state space")
+    dead_transitions, unreachable = _dead_parts(net, full, comp, reduced, notes)
     graph = (full.graph if full is not None and full.complete else
              reduced.graph if reduced is not None and reduced.complete else None)
-    if opts.check_progress:
-        if graph is not None:
-            progress_result = check_progress(nb, graph, subsystems_of(net))
-            progress_ok = not progress_result.violations
-            if progress_result.skipped:
-                notes.append("no ITERATION transition, progress not checked: "
-                             + ", ".join(progress_result.skipped))
-        elif comp is not None and comp.detail_complete:
-            progress_ok = not comp.progress_lost
-            progress_lost = tuple(comp.progress_lost)
-            progress_checked = tuple(comp.progress_checked)
-        else:
-            notes.append("progress not decided: the state space was not explored completely")
+    progress = _progress(net, nb, graph, comp, notes) if opts.check_progress else _Progress()
 
-    progress_cx: list[Counterexample] = []
-    if progress_result is not None and graph is not None:
-        g = graph
-        for v in progress_result.violations:
-            progress_cx.append(Counterexample(
-                kind="progress", steps=_steps(net, v.prefix),
-                marking=marking_labels(net, nb.marking_of(g.marking(v.point))),
-                subsystem=v.subsystem, to_cycle=_steps(net, v.to_cycle),
-                cycle=_steps(net, v.cycle),
-                cycle_marking=marking_labels(net, nb.marking_of(v.cycle_marking))))
-
-    violated = safe is False or deadlock_free is False or progress_ok is False
+    violated = safe is False or deadlock_free is False or progress.ok is False
     if violated:
         verdict = Verdict.VIOLATED
-    elif safe and deadlock_free and (progress_ok or not opts.check_progress):
+    elif safe and deadlock_free and (progress.ok or not opts.check_progress):
         verdict = Verdict.VERIFIED
     else:
         verdict = Verdict.INCONCLUSIVE
@@ -239,15 +144,129 @@ def verify(net: FlatNet, options: VerifyOptions | None = None) -> VerifyReport:
         deadlock_count=dead_count,
         deadlocks=tuple(_deadlock_cx(net, nb, t) for t in dead_traces),
         unsafe=_unsafe_cx(net, nb, unsafe_trace) if unsafe_trace else None,
-        progress_ok=progress_ok,
-        progress=tuple(progress_cx),
-        progress_checked=progress_result.checked if progress_result else progress_checked,
-        progress_lost=progress_lost,
+        progress_ok=progress.ok,
+        progress=progress.counterexamples,
+        progress_checked=progress.checked,
+        progress_lost=progress.lost,
         dead_transitions=dead_transitions,
         unreachable_behaviours=unreachable,
         seconds=time.monotonic() - start,
         notes=tuple(notes),
     )
+
+
+def _invariants(net: FlatNet, opts: VerifyOptions, budget: float | None,
+                notes: list[str]) -> InvariantResult:
+    """Step 1: the minimal P-semiflows, within a third of the time left at most."""
+    inv = place_invariants(net, opts.max_invariant_rows,
+                           opts.invariant_time if budget is None
+                           else min(budget / 3, opts.invariant_time))
+    if inv.message:
+        notes.append(f"place invariants: {inv.message}")
+    return inv
+
+
+def _searches(net: FlatNet, nb: NetBits, opts: VerifyOptions, safe_mask: int,
+              remaining: Callable[[], float | None], notes: list[str],
+              ) -> tuple[SearchResult | None, ComposeResult | None, SearchResult | None]:
+    """Step 2: the explorations ``options.reduction`` asks for (full, compositional,
+    stubborn sets), each started only when the ones before left the question open."""
+    full: SearchResult | None = None
+    reduced: SearchResult | None = None
+    comp: ComposeResult | None = None
+    if opts.reduction in ("auto", "off"):
+        limit = opts.max_states
+        if opts.reduction == "auto":
+            limit = min(limit, opts.auto_full_states, max(10_000, opts.auto_full_words // nb.nwords))
+        full = explore_full(nb, limit, remaining(), keep_graph=opts.check_progress,
+                            max_counterexamples=opts.max_counterexamples,
+                            progress=opts.on_progress)
+        if full.stopped and full.unsafe is None:
+            notes.append(f"full exploration: {full.stopped}")
+    # "auto": the full search ran out of states without finding a violation
+    open_after_full = (opts.reduction == "auto" and full is not None and not full.complete
+                       and full.unsafe is None and not full.deadlocks)
+    if opts.reduction == "compositional" or (
+            open_after_full and full is not None and "state limit" in (full.stopped or "")):
+        comp, comp_notes = _compositional(net, nb, opts, remaining())
+        notes += comp_notes
+    if opts.reduction == "on" or (open_after_full and (
+            comp is None or not comp.complete or comp.safe is False
+            or comp.deadlock_free is False)):
+        # stubborn sets: the verdict when nothing else gave one, else a counterexample
+        reduced = explore_reduced(nb, safe_mask, opts.max_states, remaining(),
+                                  opts.max_counterexamples, opts.on_progress,
+                                  for_progress=opts.check_progress and comp is None)
+        notes.append(f"stubborn-set exploration: {reduced.states} states")
+        if reduced.stopped and reduced.unsafe is None:
+            notes.append(f"stubborn-set exploration: {reduced.stopped}")
+    return full, comp, reduced
+
+
+def _safeness(unsafe_trace: Trace | None, deciding: SearchResult, full: SearchResult | None,
+              comp: ComposeResult | None, by_invariants: bool) -> tuple[bool | None, str | None]:
+    """Step 3: safe or not, and what shows it."""
+    search = "full exploration" if deciding is full else "stubborn-set exploration"
+    if unsafe_trace is not None:
+        return False, search
+    if comp is not None and comp.safe is False:
+        return False, "the compositional check"
+    if by_invariants:
+        return True, "place invariants"
+    if deciding.complete:
+        return True, search
+    if comp is not None and comp.safe:
+        return True, "the compositional check"
+    return None, None
+
+
+def _dead_parts(net: FlatNet, full: SearchResult | None, comp: ComposeResult | None,
+                reduced: SearchResult | None, notes: list[str],
+                ) -> tuple[tuple[FlatTransition, ...] | None, tuple[str, ...] | None]:
+    """The dead transitions and unreachable behaviours, when the search allows them."""
+    if full is not None and full.complete:
+        assert full.fired is not None and full.ever_marked is not None
+        dead = tuple(t for t in net.transitions if t.index not in full.fired)
+        return dead, _unreachable_behaviours(net, _reached(net, full.fired, full.ever_marked))
+    if comp is not None and comp.detail_complete:
+        notes.append("dead transitions need the full state space (the compositional check "
+                     "decides reachable behaviours only)")
+        return None, _unreachable_behaviours(net, comp.reached)
+    if (reduced is not None and reduced.complete) or (comp is not None and comp.complete):
+        notes.append("dead transitions and unreachable behaviours need the full state space")
+    return None, None
+
+
+@dataclass(frozen=True)
+class _Progress:
+    ok: bool | None = None
+    counterexamples: tuple[Counterexample, ...] = ()
+    checked: tuple[str, ...] = ()
+    lost: tuple[str, ...] = ()
+
+
+def _progress(net: FlatNet, nb: NetBits, graph: Graph | None, comp: ComposeResult | None,
+              notes: list[str]) -> _Progress:
+    """Step 3, progress: on the reachability graph of a complete search, else from the
+    compositional check."""
+    if graph is not None:
+        result = check_progress(nb, graph, subsystems_of(net))
+        if result.skipped:
+            notes.append("no ITERATION transition, progress not checked: "
+                         + ", ".join(result.skipped))
+        cxs = tuple(Counterexample(
+            kind="progress", steps=_steps(net, v.prefix),
+            marking=marking_labels(net, nb.marking_of(graph.marking(v.point))),
+            subsystem=v.subsystem, to_cycle=_steps(net, v.to_cycle),
+            cycle=_steps(net, v.cycle),
+            cycle_marking=marking_labels(net, nb.marking_of(v.cycle_marking)))
+            for v in result.violations)
+        return _Progress(not result.violations, cxs, result.checked)
+    if comp is not None and comp.detail_complete:
+        return _Progress(not comp.progress_lost, (), tuple(comp.progress_checked),
+                         tuple(comp.progress_lost))
+    notes.append("progress not decided: the state space was not explored completely")
+    return _Progress()
 
 
 def _steps(net: FlatNet, steps: tuple[int, ...]) -> tuple:  # type: ignore[type-arg]

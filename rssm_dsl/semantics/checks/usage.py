@@ -21,25 +21,33 @@ def _exprs(decl: ast.SubsystemDecl) -> Iterator[tuple[ast.Expr, str | None]]:
     for p in decl.params:
         yield p.value, None
     for bd in decl.behaviours:
-        for c in bd.conditions:
-            yield c.expr, None
-        for u in bd.updates:
-            for case in u.cases:
-                if case.condition is not None:
-                    yield case.condition, None
-                for st in case.body:
-                    if isinstance(st, ast.Let):
-                        yield st.value, None
-                    elif isinstance(st, ast.Assign):
-                        target = st.target
-                        while isinstance(target, ast.FieldAccess | ast.Index):
-                            if isinstance(target, ast.Index):
-                                yield target.index, None
-                            target = target.value
-                        yield st.value, target.name if isinstance(target, ast.Name) else None
+        yield from _behaviour_exprs(bd)
     for sw in decl.switches:
         if sw.condition is not None:
             yield sw.condition, None
+
+
+def _behaviour_exprs(bd: ast.BehaviourDecl) -> Iterator[tuple[ast.Expr, str | None]]:
+    for c in bd.conditions:
+        yield c.expr, None
+    for u in bd.updates:
+        for case in u.cases:
+            if case.condition is not None:
+                yield case.condition, None
+            for st in case.body:
+                yield from _statement_exprs(st)
+
+
+def _statement_exprs(st: ast.Stmt) -> Iterator[tuple[ast.Expr, str | None]]:
+    if isinstance(st, ast.Let):
+        yield st.value, None
+    elif isinstance(st, ast.Assign):
+        target = st.target
+        while isinstance(target, ast.FieldAccess | ast.Index):
+            if isinstance(target, ast.Index):
+                yield target.index, None
+            target = target.value
+        yield st.value, target.name if isinstance(target, ast.Name) else None
 
 
 def names_read(decl: ast.SubsystemDecl) -> set[str]:

@@ -81,7 +81,9 @@ def compose_check(net: FlatNet, nb: NetBits, max_states: int, deadline: float | 
     """``reuse``: rename the LTS of a subtree equal to one built before (``cache``)."""
     res = ComposeResult()
     try:
-        _run(net, nb, max_states, deadline, detail, progress_subsystems, on_step, reuse, res)
+        run = _Composer(net, nb, max_states, deadline, on_step, res)
+        if run.verdict(reuse) and detail:
+            run.details(progress_subsystems)
     except TooLarge as e:
         res.stopped = str(e)
     except OutOfTime:
@@ -89,221 +91,92 @@ def compose_check(net: FlatNet, nb: NetBits, max_states: int, deadline: float | 
     return res
 
 
-def _run(net: FlatNet, nb: NetBits, max_states: int, deadline: float | None, detail: bool,
-         progress_subsystems: list[str] | None, on_step: StepCallback | None, reuse: bool,
-         res: ComposeResult) -> None:
-    nodes = page_tree(net, nb)
-    res.components = sum(1 for n in nodes if n.own is not None)
-    # users[t]: pre-order numbers of the nodes whose own places t touches
-    users: dict[int, list[int]] = {}
-    for k, node in enumerate(nodes):
-        if node.own is not None:
-            for t in node.own.transitions:
-                users.setdefault(t, []).append(k)
-    shared = frozenset(t for t, us in users.items() if len(us) > 1)
-    # the structural assumption: a page's subtree is entered only while none of its control
-    # places (all but the channels' fusion places) is marked
-    control = 0
-    for p in net.places:
-        if not is_fusion(net, p.index):
-            control |= 1 << p.index
-    own_control = [(n.own.places & control) if n.own is not None else 0 for n in nodes]
-    tree_control = own_control[:]
-    for k in range(len(nodes) - 1, 0, -1):
-        parent = nodes[k].parent
-        assert parent is not None
-        if nodes[k].kind != "device":     # a device net runs from the start, on its own
-            tree_control[parent] |= tree_control[k]
-    entries = [frozenset() if k == 0 else _entries(nb, tree_control[k])
-               for k in range(len(nodes))]
-    done = 0
+class _Composer:
+    """One compositional check: the page tree of the net, the LTS of every subtree (step 1,
+    ``verdict``), then per subsystem the whole net again (step 2, ``details``)."""
 
-    def tick(phase: str) -> None:
-        nonlocal done
-        if deadline is not None and time.monotonic() > deadline:
-            raise OutOfTime
-        done += 1
-        if on_step is not None:
-            on_step(phase, done, len(nodes))
+    def __init__(self, net: FlatNet, nb: NetBits, max_states: int, deadline: float | None,
+                 on_step: StepCallback | None, res: ComposeResult) -> None:
+        self.net, self.nb, self.max_states, self.deadline = net, nb, max_states, deadline
+        self.on_step, self.res = on_step, res
+        self.nodes = nodes = page_tree(net, nb)
+        res.components = sum(1 for n in nodes if n.own is not None)
+        # users[t]: pre-order numbers of the nodes whose own places t touches
+        self.users: dict[int, list[int]] = {}
+        for k, node in enumerate(nodes):
+            if node.own is not None:
+                for t in node.own.transitions:
+                    self.users.setdefault(t, []).append(k)
+        self.shared = frozenset(t for t, us in self.users.items() if len(us) > 1)
+        # the structural assumption: a page's subtree is entered only while none of its
+        # control places (all but the channels' fusion places) is marked
+        control = 0
+        for p in net.places:
+            if not is_fusion(net, p.index):
+                control |= 1 << p.index
+        self.own_control = [(n.own.places & control) if n.own is not None else 0
+                            for n in nodes]
+        tree_control = self.own_control[:]
+        for k in range(len(nodes) - 1, 0, -1):
+            parent = nodes[k].parent
+            assert parent is not None
+            if nodes[k].kind != "device":     # a device net runs from the start, on its own
+                tree_control[parent] |= tree_control[k]
+        self.entries = [frozenset() if k == 0 else _entries(nb, tree_control[k])
+                        for k in range(len(nodes))]
+        self.done = 0
+        self.built: dict[int, Lts] = {}
+        # the system page's composition in step 1: its order, and what was composed before
+        # each step, so that the progress check starts a subsystem's agent from there
+        self.root_order: list[int] = []
+        self.root_steps: list[tuple[int, Lts | None]] = []
 
-    def counted(lts: Lts) -> Lts:
-        res.states += lts.size
-        res.largest = max(res.largest, lts.size)
-        return lts
-
-    def minimized(lts: Lts, groups: Sequence[frozenset[int]] = ()) -> Lts:
-        return minimize(counted(lts), groups)
-
-    def compose(x: Lts, y: Lts, hidden: frozenset[int] | set[int],
-                groups: Sequence[frozenset[int]] = ()) -> Lts:
-        return minimized(product(x, y, frozenset(hidden), max_states), groups)
-
-    def leaves_subtree(t: int, k: int) -> bool:
-        node = nodes[k]
-        return any(not node.first <= u < node.last for u in users[t])
-
-    def own_lts(k: int, keep: frozenset[int] = frozenset(),
-                observe: tuple[int, ...] = ()) -> Lts | None:
-        own = nodes[k].own
-        if own is None:
-            return None
-        tick("components")
-        return minimized(local_lts(nb, own, shared | keep, max_states, observe,
-                                   own_control[k], entries[k]))
-
-    def build(k: int, keep: frozenset[int] = frozenset(), observe: tuple[int, ...] = (),
-              child: tuple[int, Lts] | None = None) -> Lts:
-        """Node k's subtree composed, only ``keep`` and the transitions leaving it visible;
-        with ``observe``, rebuilt all the way down; with ``child``, that child's LTS given."""
-        mine = own_lts(k, keep, observe)
-        parts = ([mine] if mine is not None else []) + [
-            child[1] if child is not None and c == child[0] else
-            built[c] if not observe else build(c, keep, observe)
-            for c in nodes[k].children]
-        visible = frozenset(t for p in parts for t in p.alphabet
-                            if t in keep or leaves_subtree(t, k))
-        connectors = {i + (mine is not None) for i, c in enumerate(nodes[k].children)
-                      if nodes[c].kind == "channel"}
-        if k == 0 and child is not None and root_order:
-            # only the child differs from step 1: resume the recorded composition
-            whole = chain(parts, visible, connectors, True,
-                          resume_at=nodes[k].children.index(child[0]) + (mine is not None))
-        else:
-            whole = chain(parts, visible, connectors, k == 0, record=k == 0 and not keep)
-        result = guard(whole, entries[k])
-        if nodes[k].kind == "device":     # its places are not its agent's control places
-            result = minimized(Lts(result.init, [f & ~BUSY for f in result.flags], result.out,
-                                   result.alphabet))
-        return result
-
-    def guard(lts: Lts, enter: frozenset[int]) -> Lts:
-        """``lts`` with every firing of ``enter`` in a ``BUSY`` state sent to a
-        ``VIOLATED`` sink."""
-        if not enter or not any(lts.flags[s] & BUSY and any(a in enter for a, _ in edges)
-                                for s, edges in enumerate(lts.out)):
-            return lts
-        sink = lts.size
-        out = [[(a, sink if a in enter and lts.flags[s] & BUSY else d) for a, d in edges]
-               for s, edges in enumerate(lts.out)]
-        return minimized(Lts(lts.init, [*lts.flags, VIOLATED], [*out, []], lts.alphabet))
-
-    # the system page's composition in step 1: its order, and what was composed before each
-    # step, so that the progress check starts a subsystem's agent from there
-    root_order: list[int] = []
-    root_steps: list[tuple[int, Lts | None]] = []
-
-    def chain(parts: list[Lts], visible: frozenset[int],
-              connectors: frozenset[int] | set[int] = frozenset(),
-              k_root: bool = False, record: bool = False,
-              resume_at: int | None = None) -> Lts:
-        """Compose ``parts`` one at a time (``composition_order``), hiding every action not
-        in ``visible`` as soon as all parts using it are in. A connector (a channel) that
-        links what is composed to the next part goes in together with that part.
-
-        ``record``: keep the order and every step's start (the system page in step 1).
-        ``resume_at``: the recorded composition with part ``resume_at`` replaced, which is
-        the only one to differ: it starts from the last step recorded before that part."""
-        q = 0
-        cur: Lts | None = None
-        if resume_at is None:
-            order = composition_order([p.alphabet for p in parts])
-        else:
-            order = root_order
-            where = order.index(resume_at)
-            q, cur = max((step for step in root_steps if step[0] <= where),
-                         key=lambda step: step[0])
-        if record:
-            root_order[:] = order
-        left: dict[int, int] = {}
-        for i in order[q:]:
-            for t in parts[i].alphabet:
-                left[t] = left.get(t, 0) + 1
-        used_by: dict[int, set[int]] = {}
-        for i, p in enumerate(parts):
-            for t in p.alphabet:
-                used_by.setdefault(t, set()).add(i)
-
-        def interfaces(alphabet: frozenset[int]) -> list[frozenset[int]]:
-            """The open actions grouped by the parts that use them (those composed and those
-            still to come): one group per pair of neighbours."""
-            by: dict[frozenset[int], set[int]] = {}
-            for t in alphabet:
-                by.setdefault(frozenset(used_by[t]), set()).add(t)
-            return [frozenset(g) for g in by.values()]
-
-        def take(i: int) -> None:
-            for t in parts[i].alphabet:
-                left[t] -= 1
-
-        def closed(lts: Lts, keep: frozenset[int]) -> set[int]:
-            return {t for t in lts.alphabet if left[t] == 0 and t not in visible
-                    and t not in keep}
-
-        while q < len(order):
-            if record:
-                root_steps.append((q, cur))
-            take(order[q])
-            segment = parts[order[q]]
-            q += 1
-            if cur is None:
-                cur = minimized(segment.hide(closed(segment, frozenset())))
+    # ------------------------------------------------------------------ step 1
+    def verdict(self, reuse: bool) -> bool:
+        """Bottom-up: every page's subtree, the root's is the whole net with nothing
+        visible; a subtree equal to one built before up to renaming (another agent of a
+        ring) is renamed. Safeness and deadlocks read off the root's; False when the check
+        does not apply."""
+        nodes, built, res = self.nodes, self.built, self.res
+        seen: dict[Hashable, tuple[Lts, tuple[int, ...]]] = {}
+        for k in range(len(nodes) - 1, -1, -1):
+            key, transitions = subtree_key(nodes, k, self.nb, self.users, self.own_control,
+                                           self.entries)
+            if reuse and key in seen:
+                lts, source = seen[key]
+                built[k] = rename(lts, source, transitions)
                 continue
-            # a connector between ``cur`` and the next part (a channel and the agent reading
-            # it) is composed with that part first: ``cur`` never carries the channel's state
-            # unconstrained by its reader, and there is one large reduction instead of two
-            if (order[q - 1] in connectors and q < len(order)
-                    and segment.alphabet <= cur.alphabet | parts[order[q]].alphabet):
-                take(order[q])
-                nxt = parts[order[q]]
-                q += 1
-                segment = compose(segment, nxt, closed(segment, cur.alphabet)
-                                  | closed(nxt, cur.alphabet))
-            hidden = closed(cur, frozenset()) | closed(segment, frozenset())
-            if q == len(order) and not visible and k_root:
-                # the whole net with nothing visible: its deadlocks and flags are read off
-                # the product directly, a reduction would be wasted
-                cur = counted(product(cur, segment, frozenset(hidden), max_states))
-                continue
-            cur = compose(cur, segment, hidden,
-                          interfaces((cur.alphabet | segment.alphabet) - hidden))
-        assert cur is not None
-        return cur
+            built[k] = self.build(k)
+            seen[key] = (built[k], transitions)
+        whole = built[0]
+        assert not whole.alphabet, "every transition is hidden at the root"
+        unsafe = any(f & UNSAFE for f in whole.flags)
+        dead = any(_dead(whole, s) for s in range(whole.size))
+        if any(f & VIOLATED for f in whole.flags):
+            # the runs up to a violation are real: what they reach stands, nothing else does
+            res.safe = False if unsafe else None
+            res.deadlock_free = False if dead else None
+            res.stopped = ("a page of the net can be entered while it is still busy, so the "
+                           "compositional check does not apply")
+            return False
+        res.safe = not unsafe
+        res.deadlock_free = not dead
+        res.complete = True
+        return True
 
-    # 1. bottom-up: every page's subtree, the root's is the whole net with nothing visible;
-    # a subtree equal to one built before up to renaming (another agent of a ring) is renamed
-    built: dict[int, Lts] = {}
-    seen: dict[Hashable, tuple[Lts, tuple[int, ...]]] = {}
-    for k in range(len(nodes) - 1, -1, -1):
-        key, transitions = subtree_key(nodes, k, nb, users, own_control, entries)
-        if reuse and key in seen:
-            lts, source = seen[key]
-            built[k] = rename(lts, source, transitions)
-            continue
-        built[k] = build(k)
-        seen[key] = (built[k], transitions)
-    whole = built[0]
-    assert not whole.alphabet, "every transition is hidden at the root"
-    unsafe = any(f & UNSAFE for f in whole.flags)
-    dead = any(_dead(whole, s) for s in range(whole.size))
-    if any(f & VIOLATED for f in whole.flags):
-        # the runs up to a violation are real: what they reach stands, nothing else does
-        res.safe = False if unsafe else None
-        res.deadlock_free = False if dead else None
-        res.stopped = ("a page of the net can be entered while it is still busy, so the "
-                       "compositional check does not apply")
-        return
-    res.safe = not unsafe
-    res.deadlock_free = not dead
-    res.complete = True
-    if not detail:
-        return
+    # ------------------------------------------------------------------ step 2
+    def details(self, progress_subsystems: list[str] | None) -> None:
+        """For every subsystem: the whole net again, rebuilt along the path from the
+        subsystem to the root (every other subtree as built in step 1), the subsystem's
+        ITERATION transitions visible and its places observed."""
+        wanted = set(progress_subsystems) if progress_subsystems is not None else None
+        for k, n in enumerate(self.nodes):
+            if n.kind in SUBSYSTEM_KINDS:
+                self.inspect(k, wanted)
+        self.res.detail_complete = True
 
-    # 2. for every subsystem: the whole net again, rebuilt along the path from the subsystem
-    # to the root (every other subtree as built above), the subsystem's ITERATION
-    # transitions visible and its places observed
-    wanted = set(progress_subsystems) if progress_subsystems is not None else None
-
-    def inspect(k: int) -> None:
+    def inspect(self, k: int, wanted: set[str] | None) -> None:
+        net, nodes, res = self.net, self.nodes, self.res
         name = nodes[k].owner
         iterations = frozenset(t.index for t in net.transitions
                                if t.subsystem == name and t.role is Role.ITERATION)
@@ -315,13 +188,13 @@ def _run(net: FlatNet, nb: NetBits, max_states: int, deadline: float | None, det
                      if t.subsystem == name and t.behaviour is not None
                      and (name, t.behaviour) not in behaviours}
         keep = iterations | frozenset(placeless)
-        tick("subsystems")
-        graph = build(k, keep, observe)
+        self.tick("subsystems")
+        graph = self.build(k, keep, observe)
         node = k
         while nodes[node].parent is not None:
             parent = nodes[node].parent
             assert parent is not None
-            graph = build(parent, keep, (), (node, graph))
+            graph = self.build(parent, keep, (), (node, graph))
             node = parent
         seen = 0
         for f in graph.flags:
@@ -338,10 +211,161 @@ def _run(net: FlatNet, nb: NetBits, max_states: int, deadline: float | None, det
             if _loses_progress(graph, iterations):
                 res.progress_lost.append(name)
 
-    for k, n in enumerate(nodes):
-        if n.kind in SUBSYSTEM_KINDS:
-            inspect(k)
-    res.detail_complete = True
+    # ------------------------------------------------------------------ building blocks
+    def tick(self, phase: str) -> None:
+        if self.deadline is not None and time.monotonic() > self.deadline:
+            raise OutOfTime
+        self.done += 1
+        if self.on_step is not None:
+            self.on_step(phase, self.done, len(self.nodes))
+
+    def counted(self, lts: Lts) -> Lts:
+        self.res.states += lts.size
+        self.res.largest = max(self.res.largest, lts.size)
+        return lts
+
+    def minimized(self, lts: Lts, groups: Sequence[frozenset[int]] = ()) -> Lts:
+        return minimize(self.counted(lts), groups)
+
+    def compose(self, x: Lts, y: Lts, hidden: frozenset[int] | set[int],
+                groups: Sequence[frozenset[int]] = ()) -> Lts:
+        return self.minimized(product(x, y, frozenset(hidden), self.max_states), groups)
+
+    def product(self, x: Lts, y: Lts, hidden: frozenset[int] | set[int]) -> Lts:
+        """Unreduced (the whole net with nothing visible: its deadlocks and flags are read
+        off the product directly, a reduction would be wasted)."""
+        return self.counted(product(x, y, frozenset(hidden), self.max_states))
+
+    def leaves_subtree(self, t: int, k: int) -> bool:
+        node = self.nodes[k]
+        return any(not node.first <= u < node.last for u in self.users[t])
+
+    def own_lts(self, k: int, keep: frozenset[int] = frozenset(),
+                observe: tuple[int, ...] = ()) -> Lts | None:
+        own = self.nodes[k].own
+        if own is None:
+            return None
+        self.tick("components")
+        return self.minimized(local_lts(self.nb, own, self.shared | keep, self.max_states,
+                                        observe, self.own_control[k], self.entries[k]))
+
+    def build(self, k: int, keep: frozenset[int] = frozenset(), observe: tuple[int, ...] = (),
+              child: tuple[int, Lts] | None = None) -> Lts:
+        """Node k's subtree composed, only ``keep`` and the transitions leaving it visible;
+        with ``observe``, rebuilt all the way down; with ``child``, that child's LTS given."""
+        nodes = self.nodes
+        mine = self.own_lts(k, keep, observe)
+        parts = ([mine] if mine is not None else []) + [
+            child[1] if child is not None and c == child[0] else
+            self.built[c] if not observe else self.build(c, keep, observe)
+            for c in nodes[k].children]
+        visible = frozenset(t for p in parts for t in p.alphabet
+                            if t in keep or self.leaves_subtree(t, k))
+        connectors = {i + (mine is not None) for i, c in enumerate(nodes[k].children)
+                      if nodes[c].kind == "channel"}
+        chain = _Chain(self, parts, visible, connectors, k == 0)
+        if k == 0 and child is not None and self.root_order:
+            # only the child differs from step 1: resume the recorded composition
+            whole = chain.resume(nodes[k].children.index(child[0]) + (mine is not None))
+        else:
+            whole = chain.run(record=k == 0 and not keep)
+        result = self.guard(whole, self.entries[k])
+        if nodes[k].kind == "device":     # its places are not its agent's control places
+            result = self.minimized(Lts(result.init, [f & ~BUSY for f in result.flags],
+                                        result.out, result.alphabet))
+        return result
+
+    def guard(self, lts: Lts, enter: frozenset[int]) -> Lts:
+        """``lts`` with every firing of ``enter`` in a ``BUSY`` state sent to a
+        ``VIOLATED`` sink."""
+        if not enter or not any(lts.flags[s] & BUSY and any(a in enter for a, _ in edges)
+                                for s, edges in enumerate(lts.out)):
+            return lts
+        sink = lts.size
+        out = [[(a, sink if a in enter and lts.flags[s] & BUSY else d) for a, d in edges]
+               for s, edges in enumerate(lts.out)]
+        return self.minimized(Lts(lts.init, [*lts.flags, VIOLATED], [*out, []], lts.alphabet))
+
+
+class _Chain:
+    """Compose ``parts`` one at a time (``composition_order``), hiding every action not in
+    ``visible`` as soon as all parts using it are in. A connector (a channel) that links
+    what is composed to the next part goes in together with that part."""
+
+    def __init__(self, run: _Composer, parts: list[Lts], visible: frozenset[int],
+                 connectors: set[int], k_root: bool) -> None:
+        self.c, self.parts, self.visible = run, parts, visible
+        self.connectors, self.k_root = connectors, k_root
+        self.left: dict[int, int] = {}
+        self.used_by: dict[int, set[int]] = {}
+        for i, p in enumerate(parts):
+            for t in p.alphabet:
+                self.used_by.setdefault(t, set()).add(i)
+
+    def run(self, record: bool) -> Lts:
+        """``record``: keep the order and every step's start (the system page in step 1)."""
+        order = composition_order([p.alphabet for p in self.parts])
+        if record:
+            self.c.root_order[:] = order
+        return self._steps(order, 0, None, record)
+
+    def resume(self, replaced: int) -> Lts:
+        """The recorded composition with part ``replaced`` replaced, which is the only one
+        to differ: it starts from the last step recorded before that part."""
+        order = self.c.root_order
+        where = order.index(replaced)
+        q, cur = max((step for step in self.c.root_steps if step[0] <= where),
+                     key=lambda step: step[0])
+        return self._steps(order, q, cur, False)
+
+    def _interfaces(self, alphabet: frozenset[int]) -> list[frozenset[int]]:
+        """The open actions grouped by the parts that use them (those composed and those
+        still to come): one group per pair of neighbours."""
+        by: dict[frozenset[int], set[int]] = {}
+        for t in alphabet:
+            by.setdefault(frozenset(self.used_by[t]), set()).add(t)
+        return [frozenset(g) for g in by.values()]
+
+    def _take(self, i: int) -> Lts:
+        part = self.parts[i]
+        for t in part.alphabet:
+            self.left[t] -= 1
+        return part
+
+    def _closed(self, lts: Lts, keep: frozenset[int]) -> set[int]:
+        return {t for t in lts.alphabet if self.left[t] == 0 and t not in self.visible
+                and t not in keep}
+
+    def _steps(self, order: list[int], q: int, cur: Lts | None, record: bool) -> Lts:
+        c, parts = self.c, self.parts
+        for i in order[q:]:
+            for t in parts[i].alphabet:
+                self.left[t] = self.left.get(t, 0) + 1
+        while q < len(order):
+            if record:
+                c.root_steps.append((q, cur))
+            segment = self._take(order[q])
+            q += 1
+            if cur is None:
+                cur = c.minimized(segment.hide(self._closed(segment, frozenset())))
+                continue
+            # a connector between ``cur`` and the next part (a channel and the agent reading
+            # it) is composed with that part first: ``cur`` never carries the channel's state
+            # unconstrained by its reader, and there is one large reduction instead of two
+            if (order[q - 1] in self.connectors and q < len(order)
+                    and segment.alphabet <= cur.alphabet | parts[order[q]].alphabet):
+                nxt = self._take(order[q])
+                q += 1
+                segment = c.compose(segment, nxt, self._closed(segment, cur.alphabet)
+                                    | self._closed(nxt, cur.alphabet))
+            hidden = self._closed(cur, frozenset()) | self._closed(segment, frozenset())
+            if q == len(order) and not self.visible and self.k_root:
+                cur = c.product(cur, segment, hidden)
+                continue
+            cur = c.compose(cur, segment, hidden,
+                            self._interfaces((cur.alphabet | segment.alphabet) - hidden))
+        assert cur is not None
+        return cur
 
 
 def _entries(nb: NetBits, inside: int) -> frozenset[int]:

@@ -166,6 +166,31 @@ def refine(flags: list[int], div: list[bool], edges_of: list[Edges]) -> list[int
     largest group. Counting structures (a chain of agents with messages in flight) need as
     many rounds as they have states; each round costs only the region that changed."""
     n = len(flags)
+    visible, silent, preds, silent_preds = _split_edges(edges_of)
+    keys: dict[tuple[int, bool], int] = {}
+    block = [keys.setdefault((flags[c], div[c]), len(keys)) for c in range(n)]
+    count = [0] * len(keys)
+    for b in block:
+        count[b] += 1
+    common: list[frozenset[int] | None] = [None] * len(keys)
+    sigs: list[frozenset[int]] = [frozenset()] * n
+    interned: dict[frozenset[int], frozenset[int]] = {}
+    dirty: list[int] = list(range(n))
+    while dirty:
+        _signatures(dirty, block, visible, silent, sigs, interned)
+        moved = _split(dirty, block, sigs, count, common)
+        if not moved:
+            break
+        dirty = _affected(moved, block, preds, silent_preds)
+    return block
+
+
+def _split_edges(edges_of: list[Edges]) -> tuple[list[list[tuple[int, int]]], list[list[int]],
+                                                  list[list[int]], list[list[int]]]:
+    """Per state: its visible edges (the action coded for ``refine``'s signatures as
+    ``(action + 1) << 32``, and the target), its silent successors, its predecessors and
+    its silent predecessors."""
+    n = len(edges_of)
     # a pair (action, block) is coded as one int: (action + 1) << 32 | block
     visible: list[list[tuple[int, int]]] = [[] for _ in range(n)]
     silent: list[list[int]] = [[] for _ in range(n)]
@@ -179,79 +204,87 @@ def refine(flags: list[int], div: list[bool], edges_of: list[Edges]) -> list[int
                 silent_preds[d].append(c)
             else:
                 visible[c].append(((a + 1) << 32, d))
-    keys: dict[tuple[int, bool], int] = {}
-    block = [keys.setdefault((flags[c], div[c]), len(keys)) for c in range(n)]
-    count = [0] * len(keys)
-    for b in block:
-        count[b] += 1
-    common: list[frozenset[int] | None] = [None] * len(keys)
-    sigs: list[frozenset[int]] = [frozenset()] * n
-    interned: dict[frozenset[int], frozenset[int]] = {}
-    dirty: list[int] = list(range(n))
-    while dirty:
-        for c in dirty:
-            bc = block[c]
-            sig = {code | block[d] for code, d in visible[c]}
-            inherited: frozenset[int] | None = None
-            several = False
+    return visible, silent, preds, silent_preds
+
+
+def _signatures(dirty: list[int], block: list[int], visible: list[list[tuple[int, int]]],
+                silent: list[list[int]], sigs: list[frozenset[int]],
+                interned: dict[frozenset[int], frozenset[int]]) -> None:
+    """Recompute the signatures of the ``dirty`` states (in increasing order, so that their
+    inert silent successors come first)."""
+    for c in dirty:
+        bc = block[c]
+        sig = {code | block[d] for code, d in visible[c]}
+        inherited: frozenset[int] | None = None
+        several = False
+        for d in silent[c]:
+            bd = block[d]
+            if bd != bc:
+                sig.add(bd)            # (TAU + 1) << 32 is 0
+            elif inherited is None:
+                inherited = sigs[d]
+            elif sigs[d] is not inherited:
+                several = True
+        if inherited is None:
+            fs = frozenset(sig)
+        elif not several and sig <= inherited:
+            fs = inherited             # the common case inside a block: nothing new
+        else:
             for d in silent[c]:
-                bd = block[d]
-                if bd != bc:
-                    sig.add(bd)            # (TAU + 1) << 32 is 0
-                elif inherited is None:
-                    inherited = sigs[d]
-                elif sigs[d] is not inherited:
-                    several = True
-            if inherited is None:
-                fs = frozenset(sig)
-            elif not several and sig <= inherited:
-                fs = inherited             # the common case inside a block: nothing new
-            else:
-                for d in silent[c]:
-                    if block[d] == bc:
-                        sig |= sigs[d]
-                fs = frozenset(sig)
-            # equal signatures are one object, so that the test above is by identity
-            sigs[c] = interned.setdefault(fs, fs)
-        by_block: dict[int, list[int]] = {}
-        for c in dirty:
-            by_block.setdefault(block[c], []).append(c)
-        moved: list[int] = []
-        for b, states in by_block.items():
-            groups: dict[frozenset[int], list[int]] = {}
-            for c in states:
-                groups.setdefault(sigs[c], []).append(c)
-            keep = common[b]
-            if len(states) == count[b] or keep is None:
-                keep = max(groups, key=lambda g: len(groups[g]))
-                common[b] = keep
-            if len(groups) == 1 and keep in groups:
+                if block[d] == bc:
+                    sig |= sigs[d]
+            fs = frozenset(sig)
+        # equal signatures are one object, so that the test above is by identity
+        sigs[c] = interned.setdefault(fs, fs)
+
+
+def _split(dirty: list[int], block: list[int], sigs: list[frozenset[int]], count: list[int],
+           common: list[frozenset[int] | None]) -> list[int]:
+    """Move the recomputed states whose signature differs from their block's to new
+    blocks, one per signature; the states that moved."""
+    by_block: dict[int, list[int]] = {}
+    for c in dirty:
+        by_block.setdefault(block[c], []).append(c)
+    moved: list[int] = []
+    for b, states in by_block.items():
+        groups: dict[frozenset[int], list[int]] = {}
+        for c in states:
+            groups.setdefault(sigs[c], []).append(c)
+        keep = common[b]
+        if len(states) == count[b] or keep is None:
+            keep = max(groups, key=lambda g: len(groups[g]))
+            common[b] = keep
+        if len(groups) == 1 and keep in groups:
+            continue
+        for g, members in groups.items():
+            if g == keep:
                 continue
-            for g, members in groups.items():
-                if g == keep:
-                    continue
-                nb = len(count)
-                count.append(len(members))
-                common.append(g)
-                count[b] -= len(members)
-                for c in members:
-                    block[c] = nb
-                moved.extend(members)
-        if not moved:
-            break
-        seen = set(moved)
-        for c in moved:
-            seen.update(preds[c])
-        stack = list(seen)
-        while stack:
-            c = stack.pop()
-            bc = block[c]
-            for p in silent_preds[c]:
-                if p not in seen and block[p] == bc:
-                    seen.add(p)
-                    stack.append(p)
-        dirty = sorted(seen)
-    return block
+            nb = len(count)
+            count.append(len(members))
+            common.append(g)
+            count[b] -= len(members)
+            for c in members:
+                block[c] = nb
+            moved.extend(members)
+    return moved
+
+
+def _affected(moved: list[int], block: list[int], preds: list[list[int]],
+              silent_preds: list[list[int]]) -> list[int]:
+    """The states whose signature may have changed: those that moved and their
+    predecessors, closed backwards under inert silent steps; in increasing order."""
+    seen = set(moved)
+    for c in moved:
+        seen.update(preds[c])
+    stack = list(seen)
+    while stack:
+        c = stack.pop()
+        bc = block[c]
+        for p in silent_preds[c]:
+            if p not in seen and block[p] == bc:
+                seen.add(p)
+                stack.append(p)
+    return sorted(seen)
 
 
 def _quotient(lts: Lts, comp: list[int], block: list[int], cflags: list[int],

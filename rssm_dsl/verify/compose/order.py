@@ -48,12 +48,19 @@ def composition_order(alphabets: Sequence[Collection[int]]) -> list[int]:
                 for j in users[t]:
                     if not done[j]:
                         closing[j] += 1
-        best, best_key = -1, (False, 0, 0, 0)
-        for j, alphabet in enumerate(alphabets):
-            if done[j]:
-                continue
-            grows = len(alphabet) - shared[j] - closing[j]
-            key = (shared[j] > 0, -grows, shared[j], -j)
-            if best < 0 or key > best_key:
-                best, best_key = j, key
-        current = best
+        current = _best(alphabets, done, shared, closing)
+
+
+def _best(alphabets: Sequence[Collection[int]], done: list[bool], shared: list[int],
+          closing: list[int]) -> int:
+    """The next part: connected to what is composed, leaving the fewest open transitions,
+    sharing the most with what is composed, first in the given order."""
+    best, best_key = -1, (False, 0, 0, 0)
+    for j, alphabet in enumerate(alphabets):
+        if done[j]:
+            continue
+        grows = len(alphabet) - shared[j] - closing[j]
+        key = (shared[j] > 0, -grows, shared[j], -j)
+        if best < 0 or key > best_key:
+            best, best_key = j, key
+    return best
