@@ -81,28 +81,6 @@ def rule(p: Pairing) -> Rule:
             assert_never(p)
 
 
-def producer_waits(mode: Mode) -> bool:
-    """A producer of this mode waits until its data is taken."""
-    match mode:
-        case Mode.BLOCKING:
-            return True
-        case Mode.NONBLOCKING:
-            return False
-        case _:
-            assert_never(mode)
-
-
-def consumer_waits(mode: Mode) -> bool:
-    """A consumer of this mode waits for fresh data."""
-    match mode:
-        case Mode.BLOCKING:
-            return True
-        case Mode.NONBLOCKING:
-            return False
-        case _:
-            assert_never(mode)
-
-
 # ---------------------------------------------------------------- the nets of the mode pages
 
 

@@ -102,13 +102,3 @@ class FlatNet:
 
     def transition(self, name: str) -> FlatTransition:
         return self.transitions[self.transition_index[name]]
-
-    def incidence(self) -> list[list[int]]:
-        """Incidence matrix C[p][t] = post - pre."""
-        c = [[0] * len(self.transitions) for _ in self.places]
-        for t in self.transitions:
-            for p in t.pre:
-                c[p][t.index] -= 1
-            for p in t.post:
-                c[p][t.index] += 1
-        return c

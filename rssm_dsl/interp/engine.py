@@ -87,10 +87,6 @@ class TokenGame:
     def marking(self) -> frozenset[int]:
         return frozenset(i for i, v in enumerate(self.tokens) if v)
 
-    def marking_mask(self) -> int:
-        """The marking as a bitmask (bit p set when place p holds a token)."""
-        return sum(1 << i for i, v in enumerate(self.tokens) if v)
-
     def marked_names(self) -> list[str]:
         return [self.net.places[i].name for i, v in enumerate(self.tokens) if v]
 

@@ -174,32 +174,12 @@ def explore_full(
     block = max(1, _CELLS // max(1, nt))
 
     while frontier.shape[0]:
-        succ_parts: list[U64] = []
-        src_parts: list[I64] = []
-        t_parts: list[I64] = []
-        for lo in range(0, frontier.shape[0], block):
-            f = frontier[lo:lo + block]
-            si, ti = np.nonzero(kernel.enabled(f))
-            outdeg = np.bincount(si, minlength=f.shape[0])
-            if not outdeg.all():
-                dead_states.append(np.flatnonzero(outdeg == 0).astype(np.int64) + base + lo)
-            succ, clash = kernel.fire(f, si, ti)
-            if clash is not None:
-                k = int(np.flatnonzero(clash)[0])
-                unsafe_at = (base + lo + int(si[k]), int(kernel.perm[ti[k]]),
-                             kernel.clash_places(f[si[k]], int(ti[k])))
-                break
-            succ_parts.append(succ)
-            src_parts.append(si.astype(np.int64) + base + lo)
-            t_parts.append(kernel.perm[ti])
-            if deadline is not None and time.monotonic() > deadline:
-                stopped = f"time limit of {time_limit} s reached"
-                break
-        if unsafe_at is not None or stopped is not None:
+        level = _expand(kernel, frontier, base, block, deadline, dead_states)
+        if level.unsafe_at is not None or level.timed_out:
+            unsafe_at = level.unsafe_at
+            stopped = None if unsafe_at is not None else f"time limit of {time_limit} s reached"
             break
-        succ = np.concatenate(succ_parts) if succ_parts else np.zeros((0, nw), np.uint64)
-        src = np.concatenate(src_parts) if src_parts else np.zeros(0, np.int64)
-        trans = np.concatenate(t_parts) if t_parts else np.zeros(0, np.int64)
+        succ, src, trans = level.succ, level.src, level.trans
         fired[trans] = True
         nedges += int(src.shape[0])
         base += frontier.shape[0]
@@ -226,6 +206,62 @@ def explore_full(
             stopped = f"time limit of {time_limit} s reached"
             break
 
+    return _full_result(bits, visited, level_parent, level_via, (e_src, e_dst, e_trans),
+                        dead_states, fired, unsafe_at, stopped, nedges, depth, start,
+                        keep_graph, max_counterexamples)
+
+
+@dataclass
+class _Level:
+    """The successors of one BFS level (or why its expansion stopped)."""
+
+    succ: U64
+    src: I64
+    trans: I64
+    unsafe_at: tuple[int, int, int] | None = None
+    timed_out: bool = False
+
+
+def _expand(kernel: _Kernel, frontier: U64, base: int, block: int, deadline: float | None,
+            dead_states: list[I64]) -> _Level:
+    """Fire every enabled transition of every state of ``frontier`` (numbered from
+    ``base``), in blocks; dead states are added to ``dead_states``."""
+    succ_parts: list[U64] = []
+    src_parts: list[I64] = []
+    t_parts: list[I64] = []
+    empty = _Level(np.zeros((0, kernel.nw), np.uint64), np.zeros(0, np.int64),
+                   np.zeros(0, np.int64))
+    for lo in range(0, frontier.shape[0], block):
+        f = frontier[lo:lo + block]
+        si, ti = np.nonzero(kernel.enabled(f))
+        outdeg = np.bincount(si, minlength=f.shape[0])
+        if not outdeg.all():
+            dead_states.append(np.flatnonzero(outdeg == 0).astype(np.int64) + base + lo)
+        succ, clash = kernel.fire(f, si, ti)
+        if clash is not None:
+            k = int(np.flatnonzero(clash)[0])
+            empty.unsafe_at = (base + lo + int(si[k]), int(kernel.perm[ti[k]]),
+                               kernel.clash_places(f[si[k]], int(ti[k])))
+            return empty
+        succ_parts.append(succ)
+        src_parts.append(si.astype(np.int64) + base + lo)
+        t_parts.append(kernel.perm[ti])
+        if deadline is not None and time.monotonic() > deadline:
+            empty.timed_out = True
+            return empty
+    if not succ_parts:
+        return empty
+    return _Level(np.concatenate(succ_parts), np.concatenate(src_parts),
+                  np.concatenate(t_parts))
+
+
+def _full_result(bits: NetBits, visited: _Table, level_parent: list[I32], level_via: list[I32],
+                 edges: tuple[list[I32], list[I32], list[I32]], dead_states: list[I64],
+                 fired: npt.NDArray[np.bool_], unsafe_at: tuple[int, int, int] | None,
+                 stopped: str | None, nedges: int, depth: int, start: float,
+                 keep_graph: bool, max_counterexamples: int) -> SearchResult:
+    """The search result of a finished (or stopped) full exploration."""
+    e_src, e_dst, e_trans = edges
     states = visited.store[:visited.size]
     parent = np.concatenate(level_parent)
     via = np.concatenate(level_via)
@@ -261,6 +297,8 @@ def explore_full(
         fired=frozenset(np.flatnonzero(fired).tolist()), ever_marked=ever,
         graph=graph if keep_graph and stopped is None else None,
     )
+
+
 
 
 _MIX = np.array([0x9E3779B97F4A7C15, 0xC2B2AE3D27D4EB4F, 0x165667B19E3779F9,
