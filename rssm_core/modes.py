@@ -6,8 +6,9 @@ on at once, overwriting data that was never read. Consumer blocking: waits for f
 Consumer non-blocking: takes fresh data if there is any, otherwise goes on with what it had
 (its input buffer keeps its value, ``new(x)`` stays false).
 
-A channel is two fused places, ``full`` (data not yet taken) and ``empty``, exactly one of them
-marked, initially ``empty``. :func:`send_net` and :func:`receive_net` give the transitions of a
+A channel is two fused places, ``full`` (data not yet taken) and ``empty``, initially
+``empty``; the channel's one token lies in one of them or in the ``op`` place of the send or
+receive moving the data. :func:`send_net` and :func:`receive_net` give the transitions of a
 side's mode page over the places ``in``, ``op`` (the send or receive operation), ``wait``,
 ``out``, ``full`` and ``empty``; the compiler builds every mode page from them (so the
 verifier's state space and the interpreter's token game both follow this table), and the

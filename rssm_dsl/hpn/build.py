@@ -1,11 +1,9 @@
 """Build the five-layer HPN of a system (paper IV), plus the device nets that close it.
 
-Communication modes (DESIGN.md section 4): a channel is two fused places, `1` (full: data
-not yet taken) and `2` (empty), exactly one marked, `2` at start.
-  producer non-blocking: in+2 -> op | in+1 -> op (overwrite); op -> out+1
-  producer blocking:     in+2 -> op; op -> wait+1; wait+2 -> out+2 (waits until taken)
-  consumer blocking:     in+1 -> op; op -> out+2
-  consumer non-blocking: in+1 -> op; op -> out+2 | in+2 -> out+2 (nothing new)
+Communication modes: a channel is two fused places, `1` (full: data not yet taken) and `2`
+(empty), `2` marked at start; its one token lies in one of them or in the operation place of
+the send or receive moving the data. Every mode page is built from the nets of
+rssm_core.modes (send_net / receive_net).
 """
 
 from __future__ import annotations

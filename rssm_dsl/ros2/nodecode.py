@@ -370,6 +370,9 @@ class SubsystemCode:
                     lines.append(f"{INDENT}r.increment()  # i := i + 1")
                 case Receive():
                     lines.append(f"{INDENT}yield from r.receive({arrangement(step.arrangement)})")
+        if not any("yield from" in line for line in lines):
+            # no communication: nothing waits, but the runner drives every iteration as one
+            lines.append(f"{INDENT}yield from ()  # no send or receive: nothing waits")
         return lines
 
     def _params(self, owner: str, params: tuple[Variable, ...]) -> tuple[ParamView, ...]:

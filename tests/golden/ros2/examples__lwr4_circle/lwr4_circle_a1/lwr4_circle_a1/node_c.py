@@ -135,7 +135,6 @@ def iterate_1(r: _Runner) -> _Iteration:
     r.commit(stage)  # memory and outputs of i + 1; new(x) cleared
     yield from r.send(('buf', 'cmd'))
     r.increment()  # i := i + 1
-    yield from r.receive(None)
     return r.conditions(CONDITIONS_1)
 
 
@@ -168,7 +167,6 @@ def iterate_2(r: _Runner) -> _Iteration:
     r.commit(stage)  # memory and outputs of i + 1; new(x) cleared
     yield from r.send(('buf', 'cmd'))
     r.increment()  # i := i + 1
-    yield from r.receive(None)
     return r.conditions(CONDITIONS_2)
 
 

@@ -83,9 +83,8 @@ def iterate_1(r: _Runner) -> _Iteration:
     stage: dict[str, Any] = {}
     r.partial(CASES_1_1[mask], st, stage)  # f[conveyor,c,run,1]: update memory
     r.commit(stage)  # memory and outputs of i + 1; new(x) cleared
-    yield from r.send(None)
     r.increment()  # i := i + 1
-    yield from r.receive(None)
+    yield from ()  # no send or receive: nothing waits
     return r.conditions(CONDITIONS_1)
 
 

@@ -127,7 +127,6 @@ def iterate_1(r: _Runner) -> _Iteration:
     r.commit(stage)  # memory and outputs of i + 1; new(x) cleared
     yield from r.send(('buf', 'value'))
     r.increment()  # i := i + 1
-    yield from r.receive(None)
     return r.conditions(CONDITIONS_1)
 
 
@@ -160,7 +159,6 @@ def iterate_2(r: _Runner) -> _Iteration:
     r.commit(stage)  # memory and outputs of i + 1; new(x) cleared
     yield from r.send(('buf', 'value'))
     r.increment()  # i := i + 1
-    yield from r.receive(None)
     return r.conditions(CONDITIONS_2)
 
 

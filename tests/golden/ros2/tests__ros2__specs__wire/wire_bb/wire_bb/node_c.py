@@ -99,7 +99,6 @@ def iterate_1(r: _Runner) -> _Iteration:
     r.commit(stage)  # memory and outputs of i + 1; new(x) cleared
     yield from r.send(('buf', 'data'))
     r.increment()  # i := i + 1
-    yield from r.receive(None)
     return r.conditions(CONDITIONS_1)
 
 

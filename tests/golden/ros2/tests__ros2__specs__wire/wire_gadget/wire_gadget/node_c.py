@@ -118,7 +118,6 @@ def iterate_1(r: _Runner) -> _Iteration:
     stage: dict[str, Any] = {}
     r.partial(CASES_1_1[mask], st, stage)  # f[gadget,c,watch,1]: update memory
     r.commit(stage)  # memory and outputs of i + 1; new(x) cleared
-    yield from r.send(None)
     r.increment()  # i := i + 1
     yield from r.receive(('buf', 'reading'))
     return r.conditions(CONDITIONS_1)
@@ -148,7 +147,6 @@ def iterate_2(r: _Runner) -> _Iteration:
     stage: dict[str, Any] = {}
     r.partial(CASES_2_1[mask], st, stage)  # f[gadget,c,cool,1]: update memory
     r.commit(stage)  # memory and outputs of i + 1; new(x) cleared
-    yield from r.send(None)
     r.increment()  # i := i + 1
     yield from r.receive(('buf', 'reading'))
     return r.conditions(CONDITIONS_2)
