@@ -23,12 +23,7 @@ def text(value: str) -> str:
 
 def attr(value: str) -> str:
     """An attribute value escaped as ElementTree escapes it (without the quotes)."""
-    if "&" in value:
-        value = value.replace("&", "&amp;")
-    if "<" in value:
-        value = value.replace("<", "&lt;")
-    if ">" in value:
-        value = value.replace(">", "&gt;")
+    value = text(value)
     if '"' in value:
         value = value.replace('"', "&quot;")
     if "\r" in value:
