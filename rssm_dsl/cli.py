@@ -2,8 +2,9 @@
 `rssmc --help` stays fast.
 
 Exit codes (rssm_dsl/commands/common.py): 0 success (warnings allowed); 1 the specification
-has errors (or, for verify, a property is violated); 2 a usage error (or, for verify,
-inconclusive); 70 internal error; 130 interrupted.
+has errors (or, for verify, a property is violated); 2 a usage error; 70 internal error;
+130 interrupted. `rssmc verify` adds 3 (inconclusive) and 4 (verified without the progress
+check).
 """
 
 from __future__ import annotations

@@ -3,7 +3,9 @@ options, the guard that turns a crash into an internal-error report, and the dia
 report. `rssm_dsl.cli` imports the commands; the commands import this module, never the CLI.
 
 Exit codes: 0 success (warnings allowed); 1 the specification has errors (or, for verify,
-a property is violated); 2 a usage error (or, for verify, inconclusive); 70 internal error.
+a property is violated); 2 a usage error (for verify, also a specification that does not
+compile); 70 internal error; 130 interrupted (Ctrl-C). `rssmc verify` adds 3 inconclusive
+and 4 verified without the progress check (rssm_dsl/commands/verify.py).
 """
 
 from __future__ import annotations

@@ -1,18 +1,41 @@
 """`rssmc verify`: safeness, deadlocks, progress and place invariants of the flattened HPN,
-with counterexamples in the specification's words. Exit 0 verified, 1 violated,
-2 inconclusive or input error."""
+with counterexamples in the specification's words.
+
+Exit codes: 0 verified (safe, deadlock-free, no loss of progress); 1 a property is violated;
+2 usage error or a specification that does not compile; 3 inconclusive (a limit was reached,
+or a property was not decided); 4 safe and deadlock-free, progress not checked
+(--no-progress-check); 130 interrupted by Ctrl-C (the partial report is printed; 1 if a
+violation was found before); 70 internal error.
+
+Limits (``rssm_dsl.verify.budget``): one budget per run, from the command's start: the
+deadline (``--timeout``), the memory limit (``--max-memory``, checked against the resident
+size; ``RLIMIT_DATA`` a margin above it as a backstop) and Ctrl-C. Long loops check it and the
+run ends within a second or two of a limit with the partial report. Progress is shown on
+stderr once a run takes over 2 s: one line refreshed on a terminal, a line every 5 s with
+``--progress`` elsewhere.
+"""
 
 from __future__ import annotations
 
+import contextlib
+import os
+import signal
 import sys
+import time
+from collections.abc import Iterator
 from pathlib import Path
-from typing import Annotated, Any
+from types import FrameType
+from typing import TYPE_CHECKING, Annotated, Any
 
 import typer
 
-from rssm_dsl.commands.common import EXIT_USAGE, FileArg, Format, guarded, report
+from rssm_dsl.commands.common import EXIT_INTERRUPTED, EXIT_USAGE, FileArg, Format, guarded, report
 
-EXIT_INCONCLUSIVE = EXIT_USAGE
+if TYPE_CHECKING:
+    from rssm_dsl.verify.budget import Budget, Status
+
+EXIT_BAD_INPUT = EXIT_USAGE         # a usage error or a specification that does not compile
+EXIT_INCONCLUSIVE = 3               # = rssm_dsl.verify.report.EXIT_INCONCLUSIVE
 
 
 def verify_cmd(
@@ -21,7 +44,14 @@ def verify_cmd(
                           help="Give up (inconclusive) after exploring this many states.")]
     = 5_000_000,
     timeout: Annotated[float, typer.Option("--timeout", min=0.1,
-                       help="Give up (inconclusive) after this many seconds.")] = 300.0,
+                       help="Stop (inconclusive) after this many seconds, counted from the "
+                            "start of the command.")] = 300.0,
+    max_memory: Annotated[str | None, typer.Option(
+        "--max-memory", metavar="SIZE",
+        help="Stop (inconclusive) when the resident memory reaches SIZE: 8G, 500M, 40% (of "
+             "the physical memory); a bare number is in GB. Default: 60% of the physical "
+             "memory, at most 90% of what is available at the start.",
+        show_default=False)] = None,
     format: Annotated[Format, typer.Option("--format", "-f", help="text or json")] = Format.text,
     reduction: Annotated[str, typer.Option(
         help="auto (full exploration; when it does not fit, the compositional check, then "
@@ -31,7 +61,7 @@ def verify_cmd(
     invariants: Annotated[bool, typer.Option(help="Compute the minimal P-invariants.")] = True,
     progress_check: Annotated[bool, typer.Option("--progress-check/--no-progress-check",
                               help="Look for subsystems that can get stuck while the rest "
-                                   "keeps running.")] = True,
+                                   "keeps running (off: exit 4 instead of 0).")] = True,
     cross_check: Annotated[bool, typer.Option(
         "--cross-check", help="Also run SPIN (deadlock, safeness), 4ti2 (P-semiflows) and, on "
                               "small nets, cpncheck (the hierarchical .cpn) when installed, "
@@ -41,125 +71,248 @@ def verify_cmd(
     show_invariants: Annotated[bool, typer.Option(
         "--show-invariants", help="List every place invariant (in the specification's words).")]
     = False,
+    progress: Annotated[bool, typer.Option(
+        "--progress", help="Show progress on stderr (phase, states, states/s, memory) even "
+                           "when stderr is not a terminal: a line every 5 s.")] = False,
 ) -> None:
     """Prove the system's HPN safe and deadlock-free (and that no subsystem loses progress),
-    or print a counterexample as a firing sequence of your behaviours and channels."""
+    or print a counterexample as a firing sequence of your behaviours and channels.
+
+    It stops within a second or two of --timeout, --max-memory or Ctrl-C, with what was proved.
+
+    Exit codes:
+      0    verified: safe, deadlock-free, no loss of progress
+      1    a property is violated (counterexample printed)
+      2    usage error, or the specification does not compile
+      3    inconclusive: a limit was reached, or a property was not decided
+      4    safe and deadlock-free, progress not checked (--no-progress-check)
+      130  interrupted by Ctrl-C: partial report (1 if a violation was found)
+      70   internal error
+    """
+    started = time.monotonic()
 
     def run() -> int:
-        from rssm_dsl.hpn.flatten import flatten
-        from rssm_dsl.pipeline import compile_file
-        from rssm_dsl.verify import VerifyOptions, render_text, verify
-        from rssm_dsl.verify.statespace import Progress
+        from rssm_dsl.verify.budget import Budget, default_max_memory, parse_size
 
         if reduction not in ("auto", "on", "off", "compositional"):
             typer.echo(f"rssmc: --reduction must be auto, on, off or compositional, not "
                        f"{reduction!r}", err=True)
-            return EXIT_INCONCLUSIVE
+            return EXIT_BAD_INPUT
+        try:
+            memory = parse_size(max_memory) if max_memory is not None else default_max_memory()
+        except ValueError as e:
+            typer.echo(f"rssmc: --max-memory {max_memory!r}: {e}", err=True)
+            return EXIT_BAD_INPUT
+        tty = sys.stderr.isatty()
+        live = _Live(tty) if tty or progress else None
+        budget = Budget(timeout, memory, start=started, on_status=live)
+        try:
+            with _limited(budget):
+                code = _verify(budget, live, file, format, reduction, max_states, invariants,
+                               progress_check, cross_check, promela, show_invariants)
+        except KeyboardInterrupt:               # a second Ctrl-C: quit at once
+            code = EXIT_INTERRUPTED
+            typer.echo("rssmc: interrupted", err=True)
+        except MemoryError:
+            stop = budget.out_of_memory()
+            typer.echo(f"rssmc: {stop.message}", err=True)
+            code = EXIT_INTERRUPTED if stop.kind == "interrupt" else EXIT_INCONCLUSIVE
+        finally:
+            if live is not None:
+                live.clear()
+        return code
+
+    guarded(run)
+
+
+def _verify(budget: Budget, live: _Live | None, file: Path, format: Format, reduction: str,
+            max_states: int, invariants: bool, progress_check: bool, cross_check: bool,
+            promela: Path | None, show_invariants: bool) -> int:
+    """Compile, verify, print; the exit code."""
+    from rssm_dsl.hpn.flatten import flatten
+    from rssm_dsl.pipeline import compile_file
+    from rssm_dsl.verify import VerifyOptions, render_text, verify
+    from rssm_dsl.verify.report import Verdict
+
+    with budget.running("the compilation"):
         comp = compile_file(file)
         if not comp.ok or comp.hpn is None:
             report(comp, format)
-            return EXIT_INCONCLUSIVE
+            return EXIT_BAD_INPUT
         net = flatten(comp.hpn)
-        if promela is not None:
-            from rssm_dsl.emit.write import write_outputs
-            from rssm_dsl.verify.promela import to_promela
+        budget.poll()               # a limit reached while compiling is the compilation's
+    if promela is not None:
+        from rssm_dsl.emit.write import write_outputs
+        from rssm_dsl.verify.promela import to_promela
 
-            write_outputs(promela.parent if str(promela.parent) else Path("."),
-                          {promela.name: to_promela(net)})
-        live = format is Format.text and sys.stderr.isatty()
+        write_outputs(promela.parent if str(promela.parent) else Path("."),
+                      {promela.name: to_promela(net)})
+    options = VerifyOptions(max_states=max_states, reduction=reduction, invariants=invariants,
+                            check_progress=progress_check, budget=budget)
+    result = verify(net, options)
+    extra: dict[str, Any] = {}
+    text_extra: list[str] = []
+    if cross_check:
+        extra, text_extra = _cross_check(net, result, comp.hpn, budget)
+    if live is not None:
+        live.clear()
+    if format is Format.json:
+        import json
 
-        def show(p: Progress) -> None:
-            typer.echo(f"\r  exploring: {p.states:,} states, depth {p.depth}, "
-                       f"frontier {p.frontier:,}   ", err=True, nl=False)
+        data = result.to_json()
+        if extra:
+            data["cross_check"] = extra
+        typer.echo(json.dumps(data, indent=2, ensure_ascii=False))
+    else:
+        typer.echo(render_text(result, max_invariants=10_000 if show_invariants else 0))
+        for line in text_extra:
+            typer.echo(line)
+    # Ctrl-C during the cross-checks: the run was interrupted all the same
+    if (budget.stop is not None and budget.stop.kind == "interrupt"
+            and result.verdict is not Verdict.VIOLATED):
+        return EXIT_INTERRUPTED
+    return int(result.exit_code)
 
-        options = VerifyOptions(max_states=max_states, time_limit=timeout, reduction=reduction,
-                                invariants=invariants, check_progress=progress_check,
-                                on_progress=show if live else None)
-        result = verify(net, options)
-        if live:
-            typer.echo("\r" + " " * 70 + "\r", err=True, nl=False)
-        extra: dict[str, Any] = {}
-        text_extra: list[str] = []
-        if cross_check:
-            extra, text_extra = _cross_check(net, result, comp.hpn)
-        if format is Format.json:
-            import json
 
-            data = result.to_json()
-            if extra:
-                data["cross_check"] = extra
-            typer.echo(json.dumps(data, indent=2, ensure_ascii=False))
+@contextlib.contextmanager
+def _limited(budget: Budget) -> Iterator[None]:
+    """Ctrl-C asks the budget to stop (a second one quits at once) and the data segment is
+    capped a margin above the memory limit; both undone on the way out."""
+    from rssm_dsl.verify.budget import limit_data_segment
+
+    def interrupted(signum: int, frame: FrameType | None) -> None:
+        if budget.cancelled:
+            raise KeyboardInterrupt
+        budget.cancel()
+        os.write(2, b"\nrssmc: interrupted: stopping at the next check to print what was "
+                    b"proved (Ctrl-C again to quit at once)\n")
+
+    old_handler: Any = None
+    try:
+        if signal.getsignal(signal.SIGINT) is not signal.SIG_IGN:   # e.g. nohup: keep it
+            old_handler = signal.signal(signal.SIGINT, interrupted)
+    except ValueError:                  # not the main thread: no handler
+        pass
+    restore = (limit_data_segment(budget.max_memory) if budget.max_memory is not None
+               else None)
+    try:
+        yield
+    finally:
+        if restore is not None:
+            restore()
+        if old_handler is not None:
+            signal.signal(signal.SIGINT, old_handler)
+
+
+class _Live:
+    """The progress line on stderr, from the budget's status reports: nothing in the first
+    2 s; then on a terminal one line refreshed in place, elsewhere a line every 5 s."""
+
+    def __init__(self, tty: bool) -> None:
+        self.tty = tty
+        self.shown = False
+        self.last = -1e9
+
+    def __call__(self, status: Status) -> None:
+        from rssm_dsl.verify.budget import format_size
+
+        if status.elapsed < 2.0 or (not self.tty and status.elapsed - self.last < 5.0):
+            return
+        self.last = status.elapsed
+        states = (f", {status.states:,} states ({status.rate:,.0f}/s)" if status.states
+                  else "")
+        text = (f"rssmc verify: {status.elapsed:.0f} s, {status.phase}{states}, "
+                f"{format_size(status.resident)} resident")
+        if self.tty:
+            sys.stderr.write("\r" + text + "\x1b[K")
+            self.shown = True
         else:
-            typer.echo(render_text(result, max_invariants=10_000 if show_invariants else 0))
-            for line in text_extra:
-                typer.echo(line)
-        return result.exit_code
+            sys.stderr.write(text + "\n")
+        sys.stderr.flush()
 
-    guarded(run)
+    def clear(self) -> None:
+        if self.shown:
+            sys.stderr.write("\r\x1b[K")
+            sys.stderr.flush()
+            self.shown = False
 
 
 CPNCHECK_MAX_STATES = 5_000
 
 
-def _cross_check(net: Any, result: Any, hpn: Any = None) -> tuple[dict[str, Any], list[str]]:
+def _cross_check(net: Any, result: Any, hpn: Any = None, budget: Budget | None = None,
+                 ) -> tuple[dict[str, Any], list[str]]:
     """SPIN and 4ti2 on the same flat net, cpncheck on the unflattened HPN (small nets
-    only); their answers beside ours."""
-    from rssm_dsl.verify.fourtitwo import semiflows_4ti2
-    from rssm_dsl.verify.promela import run_spin
-
+    only); their answers beside ours. Each runs under the run's budget (killed at its
+    deadline, its memory counted), and not at all once a limit was reached."""
     out: dict[str, Any] = {}
     lines = ["", "independent cross-checks:"]
-    spin = run_spin(net, separate=True)
+    for name, check in (("SPIN", _spin), ("4ti2", _fourtitwo), ("cpncheck", _cpncheck)):
+        if budget is not None and budget.stop is not None:
+            line, data = f": not run ({budget.stop.message})", {"ran": False,
+                                                               "message": budget.stop.message}
+        else:
+            line, data = check(net, result, hpn, budget)
+        lines.append(f"  {name}{line}")
+        out[name.lower()] = data
+    return out, lines
+
+
+def _spin(net: Any, result: Any, hpn: Any, budget: Budget | None,
+          ) -> tuple[str, dict[str, Any]]:
+    from rssm_dsl.verify.promela import run_spin
+
+    spin = run_spin(net, separate=True, budget=budget)     # stopped at the run's deadline
     if not spin.available or not spin.ran:
-        lines.append(f"  SPIN: not run ({spin.message})")
-        out["spin"] = {"ran": False, "message": spin.message}
-    else:
-        # a violation SPIN found is definite; "none found" only counts after a complete search
-        found = bool(spin.deadlock or spin.unsafe)
-        agree = (spin.deadlock == (result.deadlock_free is False)
-                 and spin.unsafe == (result.safe is False)) if spin.complete or found else None
-        word = {True: "agrees", False: "DISAGREES", None: "incomplete search"}[agree]
-        lines.append(f"  SPIN: deadlock={spin.deadlock} unsafe={spin.unsafe}, "
-                     f"{spin.states_stored:,} states in {spin.total_seconds:.2f} s: {word}")
-        out["spin"] = {"ran": True, "deadlock": spin.deadlock, "unsafe": spin.unsafe,
-                       "states": spin.states_stored, "complete": spin.complete,
-                       "seconds": round(spin.total_seconds, 3), "agrees": agree}
-    fti = semiflows_4ti2(net)
-    if not fti.available:
-        lines.append(f"  4ti2: not run ({fti.message})")
-        out["4ti2"] = {"ran": False, "message": fti.message}
-    else:
-        lines.append(f"  4ti2: {len(fti.semiflows)} minimal P-semiflows "
-                     f"(ours: {len(result.invariants)}) in {fti.seconds:.2f} s")
-        out["4ti2"] = {"ran": True, "semiflows": len(fti.semiflows),
-                       "ours": len(result.invariants), "seconds": round(fti.seconds, 3)}
-    # cpncheck expands the hierarchy of the .cpn export itself: it confirms our flattening
+        return f": not run ({spin.message})", {"ran": False, "message": spin.message}
+    # a violation SPIN found is definite; "none found" only counts after a complete search
+    found = bool(spin.deadlock or spin.unsafe)
+    agree = (spin.deadlock == (result.deadlock_free is False)
+             and spin.unsafe == (result.safe is False)) if spin.complete or found else None
+    word = {True: "agrees", False: "DISAGREES", None: "incomplete search"}[agree]
+    return (f": deadlock={spin.deadlock} unsafe={spin.unsafe}, {spin.states_stored:,} states "
+            f"in {spin.total_seconds:.2f} s: {word}",
+            {"ran": True, "deadlock": spin.deadlock, "unsafe": spin.unsafe,
+             "states": spin.states_stored, "complete": spin.complete,
+             "seconds": round(spin.total_seconds, 3), "agrees": agree})
+
+
+def _fourtitwo(net: Any, result: Any, hpn: Any, budget: Budget | None,
+               ) -> tuple[str, dict[str, Any]]:
+    from rssm_dsl.verify.fourtitwo import semiflows_4ti2
+
+    fti = semiflows_4ti2(net, budget=budget)
+    if not fti.available or not fti.message.endswith("P-semiflows"):   # missing, failed
+        return f": not run ({fti.message})", {"ran": False, "message": fti.message}
+    return (f": {len(fti.semiflows)} minimal P-semiflows (ours: {len(result.invariants)}) in "
+            f"{fti.seconds:.2f} s",
+            {"ran": True, "semiflows": len(fti.semiflows), "ours": len(result.invariants),
+             "seconds": round(fti.seconds, 3)})
+
+
+def _cpncheck(net: Any, result: Any, hpn: Any, budget: Budget | None,
+              ) -> tuple[str, dict[str, Any]]:
+    """cpncheck expands the hierarchy of the .cpn export itself: it confirms our flattening
+    (on nets under CPNCHECK_MAX_STATES states, so it needs no budget)."""
     if hpn is None or result.method != "full" or not result.complete:
         why = "no full exploration of ours to compare with" if hpn is not None else "no HPN"
-        lines.append(f"  cpncheck: not run ({why})")
-        out["cpncheck"] = {"ran": False, "message": why}
-    elif result.states >= CPNCHECK_MAX_STATES:
-        lines.append(f"  cpncheck: not run (too large: {result.states:,} states, limit "
-                     f"{CPNCHECK_MAX_STATES:,})")
-        out["cpncheck"] = {"ran": False, "message": "too large"}
-    else:
-        from rssm_dsl.verify.cpncheck_oracle import run_cpncheck
+        return f": not run ({why})", {"ran": False, "message": why}
+    if result.states >= CPNCHECK_MAX_STATES:
+        return (f": not run (too large: {result.states:,} states, limit "
+                f"{CPNCHECK_MAX_STATES:,})", {"ran": False, "message": "too large"})
+    from rssm_dsl.verify.cpncheck_oracle import run_cpncheck
 
-        cpn = run_cpncheck(hpn, max_states=2 * CPNCHECK_MAX_STATES)
-        if not cpn.ran:
-            lines.append(f"  cpncheck: not run ({cpn.message})")
-            out["cpncheck"] = {"ran": False, "message": cpn.message}
-        else:
-            agree = (cpn.complete and cpn.states == result.states
-                     and cpn.deadlock_free == result.deadlock_free
-                     and cpn.unsafe == (result.safe is False))
-            lines.append(f"  cpncheck (hierarchical .cpn): {cpn.states:,} states, "
-                         f"{cpn.deadlocks} deadlock(s), unsafe={cpn.unsafe} in "
-                         f"{cpn.seconds:.2f} s: {'agrees' if agree else 'DISAGREES'}")
-            out["cpncheck"] = {"ran": True, "states": cpn.states, "deadlocks": cpn.deadlocks,
-                               "unsafe": cpn.unsafe, "complete": cpn.complete,
-                               "seconds": round(cpn.seconds, 3), "agrees": agree}
-    return out, lines
+    cpn = run_cpncheck(hpn, max_states=2 * CPNCHECK_MAX_STATES)
+    if not cpn.ran:
+        return f": not run ({cpn.message})", {"ran": False, "message": cpn.message}
+    agree = (cpn.complete and cpn.states == result.states
+             and cpn.deadlock_free == result.deadlock_free
+             and cpn.unsafe == (result.safe is False))
+    return (f" (hierarchical .cpn): {cpn.states:,} states, {cpn.deadlocks} deadlock(s), "
+            f"unsafe={cpn.unsafe} in {cpn.seconds:.2f} s: {'agrees' if agree else 'DISAGREES'}",
+            {"ran": True, "states": cpn.states, "deadlocks": cpn.deadlocks,
+             "unsafe": cpn.unsafe, "complete": cpn.complete,
+             "seconds": round(cpn.seconds, 3), "agrees": agree})
 
 
 def register(app: typer.Typer) -> None:

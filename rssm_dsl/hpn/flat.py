@@ -68,6 +68,33 @@ class FlatTransition:
     channel: str | None = None
 
 
+@dataclass(frozen=True, slots=True)
+class FlatCondition:
+    """The condition of a flat transition that is not known without data (ir.Condition):
+    ``kind`` is its ir.CondKind value (``case``: a data-availability case, ``continue`` /
+    ``stop``: t_4 / t_out of a behaviour, ``switch``: f^sigma), ``text`` its words; a data
+    case's ``new`` gives new(x) per input buffer of its subsystem (bit k: input k)."""
+
+    transition: int
+    kind: str
+    text: str
+    new: tuple[bool, ...] | None = None
+
+
+@dataclass(frozen=True, slots=True)
+class NewSites:
+    """Where the flat net decides new(x) of a subsystem's inputs (rssm_core/iteration.py):
+    the receive that takes fresh data into input k (the step RECEIVED of its mode page, in
+    every behaviour), the fork of the transition function P^f (new(x) frozen for its data
+    cases) and its join (the data used: every new(x) false again). The verifier tracks new(x)
+    from these (rssm_dsl/verify/datanet.py)."""
+
+    inputs: tuple[tuple[str, tuple[str, ...]], ...] = ()  # (subsystem, input buffers by k)
+    receives: tuple[tuple[int, str, int], ...] = ()       # (transition, subsystem, k)
+    forks: tuple[tuple[int, str], ...] = ()               # (transition, subsystem)
+    joins: tuple[tuple[int, str], ...] = ()               # (transition, subsystem)
+
+
 @dataclass(frozen=True)
 class FlatNet:
     """A safe P/T net. Markings are sets of place indices (at most one token per place)."""
@@ -79,6 +106,8 @@ class FlatNet:
     final: frozenset[int]          # places whose marking means the system finished
     subsystems: tuple[str, ...] = field(default=())  # qualified names, for progress checks
     pages: tuple[FlatPage, ...] = field(default=())   # the page hierarchy, parents first
+    conditions: tuple[FlatCondition, ...] = field(default=())  # those not known without data
+    new_sites: NewSites = field(default=NewSites())
 
     # lookups, each built on first use (the net is immutable)
     @cached_property

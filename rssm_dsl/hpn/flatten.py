@@ -1,12 +1,15 @@
 """Flatten the HPN into a plain safe P/T net: an arc into a page goes to its input place,
 an arc out of a page leaves from its output place, a fusion set is one place, and a
 transition whose condition is constant false (e.g. t_out of `terminal never when false`)
-is left out. Conditions on data become free choices for the verifier."""
+is left out. The conditions that are not constant are listed (``FlatNet.conditions``), with
+the transitions where new(x) is set, frozen and used (``FlatNet.new_sites``): the verifier
+tracks new(x) in the state from them (rssm_dsl/verify/datanet.py), the interpreter binds them
+itself (rssm_dsl/interp/program.py)."""
 
 from __future__ import annotations
 
-from rssm_dsl.hpn.flat import FlatNet, FlatPage, FlatPlace, FlatTransition
-from rssm_dsl.hpn.ir import HPN, Page, PageKind
+from rssm_dsl.hpn.flat import FlatCondition, FlatNet, FlatPage, FlatPlace, FlatTransition, NewSites
+from rssm_dsl.hpn.ir import HPN, Condition, CondKind, OpKind, Page, PageKind
 
 
 def _subsystem_of(hpn: HPN, page: str) -> tuple[str | None, str | None]:
@@ -54,10 +57,16 @@ def flatten(hpn: HPN) -> FlatNet:
             post[a.source].add(index[resolve(a.target, entering=True)])
 
     transitions: list[FlatTransition] = []
+    conditions: list[FlatCondition] = []
+    choices = _choices(hpn)
     for tid in sorted(hpn.transitions):
         t = hpn.transitions[tid]
         if t.condition is not None and t.condition.constant is False:
             continue
+        if tid in choices:
+            c = choices[tid]
+            conditions.append(FlatCondition(len(transitions), c.kind.value, c.text,
+                                            c.new if c.kind is CondKind.CASE else None))
         sub, beh = _subsystem_of(hpn, t.page)
         channel = None
         for pl in pre[tid] | post[tid]:
@@ -90,4 +99,56 @@ def flatten(hpn: HPN) -> FlatNet:
     hierarchy = tuple(FlatPage(pg.id, pg.parent, pg.kind.value, pg.owner, agent(pg))
                       for pg in sorted(hpn.pages.values(), key=lambda pg: (level(pg.id), pg.id)))
     return FlatNet(hpn.system, tuple(places), tuple(transitions), initial, final, subsystems,
-                   hierarchy)
+                   hierarchy, tuple(conditions),
+                   _new_sites(hpn, {t.name: t.index for t in transitions}))
+
+
+def _choices(hpn: HPN) -> dict[str, Condition]:
+    """The conditions that choose between transitions: those not known without data, and
+    an `otherwise` switch (constant true) beside another switch from the same behaviour."""
+    switches: dict[tuple[str, str | None], int] = {}
+    for t in hpn.transitions.values():
+        c = t.condition
+        if c is not None and c.kind is CondKind.SWITCH and c.constant is not False:
+            switches[c.subsystem, c.behaviour] = switches.get((c.subsystem, c.behaviour), 0) + 1
+    out: dict[str, Condition] = {}
+    for t in hpn.transitions.values():
+        c = t.condition
+        if c is None or c.constant is False or (c.kind is CondKind.CASE and not c.new):
+            continue                  # not a choice (the one data case without inputs)
+        if c.constant is None or (c.kind is CondKind.SWITCH
+                                  and switches[c.subsystem, c.behaviour] > 1):
+            out[t.id] = c
+    return out
+
+
+def _new_sites(hpn: HPN, tindex: dict[str, int]) -> NewSites:
+    """The receives into the inputs of every subsystem (by the input's index k: the mode
+    page's kappa - 1, the order of the data cases' new(x)), and the forks and joins of their
+    transition functions."""
+    subsystems = {pg.owner for pg in hpn.pages.values() if pg.kind is PageKind.SUBSYSTEM}
+    index = hpn.index()
+    names: dict[str, dict[int, str]] = {}
+    receives: list[tuple[int, str, int]] = []
+    for pl in hpn.places.values():
+        op = pl.operation
+        page = hpn.pages[pl.page]
+        if (op is None or op.kind is not OpKind.RECEIVE or op.subsystem not in subsystems
+                or page.key is None or page.key.scope.k is None or op.target is None):
+            continue
+        k = page.key.scope.k - 1
+        names.setdefault(op.subsystem, {})[k] = op.target
+        receives += [(tindex[a.target], op.subsystem, k) for a in index.out_of(pl.id)
+                     if a.target in tindex]
+    forks: list[tuple[int, str]] = []
+    joins: list[tuple[int, str]] = []
+    for pg in hpn.pages.values():
+        if pg.kind is not PageKind.FUNCTION or pg.owner not in subsystems:
+            continue
+        forks += [(tindex[a.target], pg.owner) for a in index.out_of(pg.in_place)
+                  if a.target in tindex]
+        joins += [(tindex[a.source], pg.owner) for a in index.into(pg.out_place)
+                  if a.source in tindex]
+    inputs = tuple((sub, tuple(ks.get(k, f"input {k + 1}") for k in range(max(ks) + 1)))
+                   for sub, ks in sorted(names.items()))
+    return NewSites(inputs, tuple(sorted(receives)), tuple(sorted(forks)), tuple(sorted(joins)))

@@ -12,8 +12,9 @@ Accepted files (told apart by their content):
 
 Steps name transitions in the paper's notation, as strings or as objects with ``"name"`` or
 ``"transition"``. The replay forces exactly these firings, whatever the data says (the
-verifier treats conditions on data as free choices; a forced firing whose condition does not
-hold in the simulated data is marked ``"forced": true`` in the trace), with the operations
+verifier tracks new(x), so the data cases of its counterexamples hold, but its other
+conditions on data are free choices; a forced firing whose condition does not hold in the
+simulated data is marked ``"forced": true`` in the trace), with the operations
 run so that the values can be seen. A loss of progress is replayed up to its cycle, then the
 cycle twice. The replay then checks that the simulation ends where the verifier said, judged
 by the firing rule of :mod:`rssm_core.firing` (a deadlock: no transition enabled in the

@@ -1,10 +1,13 @@
 """Behavioural verification of the flat HPN: invariants, state space, progress, cross-checks.
 
 ``verify(net, options) -> VerifyReport`` is the entry point; ``render_text`` / ``render_json``
-print a report and ``exit_code`` maps its verdict to 0 (verified), 1 (violated) or 2
-(inconclusive). SPIN (``promela``) and 4ti2 (``fourtitwo``) are independent cross-checks.
+print a report and ``exit_code`` maps its verdict to 0 (verified), 1 (violated), 3
+(inconclusive) or 4 (verified without the progress check); ``VerifyReport.exit_code`` is 130
+for a run interrupted by Ctrl-C. One ``Budget`` (``budget``: deadline, memory limit, Ctrl-C)
+bounds a run. SPIN (``promela``) and 4ti2 (``fourtitwo``) are independent cross-checks.
 """
 
+from rssm_dsl.verify.budget import Budget, LimitReached, Stop
 from rssm_dsl.verify.report import (
     Counterexample,
     Verdict,
@@ -17,7 +20,10 @@ from rssm_dsl.verify.report import (
 from rssm_dsl.verify.verifier import VerifyOptions, verify
 
 __all__ = [
+    "Budget",
     "Counterexample",
+    "LimitReached",
+    "Stop",
     "Verdict",
     "VerifyOptions",
     "VerifyReport",

@@ -6,6 +6,10 @@ Its state count, dead markings and place bounds must equal what our full explora
 flattened net finds. It is a pure-Python coloured-net simulator, far slower than our explorer:
 keep it to nets of a few thousand states. It is an optional test dependency; when it is not
 installed the result says so.
+
+The HPN exported carries new(x) of the subsystems' inputs as fusion sets
+(``datanet.tracked_hpn``): its flattening is the net the verifier explores, so the two state
+spaces compare, and cpncheck checks the new(x) encoding of ``datanet`` as well.
 """
 
 from __future__ import annotations
@@ -19,6 +23,7 @@ from typing import Any
 
 from rssm_dsl.emit.cpn import hpn_cpn
 from rssm_dsl.hpn.ir import HPN
+from rssm_dsl.verify.datanet import tracked_hpn
 
 DEFAULT_MAX_STATES = 20_000
 
@@ -58,7 +63,10 @@ def _cpncheck() -> Any | None:
 def run_cpncheck(hpn: HPN, max_states: int = DEFAULT_MAX_STATES,
                  keep_markings: bool = False) -> CpnCheckResult:
     """Export the HPN as `.cpn`, have cpncheck expand the hierarchy and explore it, and count
-    (and, with ``keep_markings``, return every reachable marking)."""
+    (and, with ``keep_markings``, return every reachable marking). The HPN is given new(x)
+    as fusion sets, so that its flattening is the net the verifier explores
+    (``datanet.tracked_hpn``)."""
+    hpn = tracked_hpn(hpn)
     cc = _cpncheck()
     if cc is None:
         return CpnCheckResult(False, False, "cpncheck is not installed (pip install cpncheck)")

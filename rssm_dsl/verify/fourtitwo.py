@@ -16,6 +16,8 @@ import time
 from dataclasses import dataclass
 
 from rssm_dsl.hpn.flat import FlatNet
+from rssm_dsl.verify.budget import Budget, LimitReached, run_limited
+from rssm_dsl.verify.datanet import track_new
 from rssm_dsl.verify.invariants import incidence_matrix
 
 CANDIDATES = ("4ti2-rays", "rays", "/usr/lib/4ti2/bin/rays",
@@ -41,8 +43,22 @@ def find_rays() -> str | None:
     return None
 
 
-def semiflows_4ti2(net: FlatNet, timeout: float = 120.0) -> FourTiTwoResult:
-    """Run ``rays`` on the transposed incidence matrix of ``net``."""
+def semiflows_4ti2(net: FlatNet, timeout: float = 120.0,
+                   budget: Budget | None = None) -> FourTiTwoResult:
+    """Run ``rays`` on the transposed incidence matrix of ``net`` (under the run's
+    ``budget``, if any: killed at its deadline or on Ctrl-C), with new(x) in its places as
+    the verifier explores it (``datanet``)."""
+    net = track_new(net).net
+    if budget is None:
+        return _semiflows_4ti2(net, timeout, None)
+    with budget.running("the 4ti2 cross-check"):
+        try:
+            return _semiflows_4ti2(net, timeout, budget)
+        except LimitReached as e:
+            return FourTiTwoResult(True, message=f"stopped: {e.stop.message}")
+
+
+def _semiflows_4ti2(net: FlatNet, timeout: float, budget: Budget | None) -> FourTiTwoResult:
     exe = find_rays()
     if exe is None:
         return FourTiTwoResult(False, message="4ti2 not installed (no 4ti2-rays or rays)")
@@ -62,10 +78,9 @@ def semiflows_4ti2(net: FlatNet, timeout: float = 120.0) -> FourTiTwoResult:
         cmd = (exe, "-q", "-parb", project)
         start = time.monotonic()
         try:
-            proc = subprocess.run(cmd, capture_output=True, text=True, timeout=timeout,
-                                  check=False)
+            proc = run_limited(cmd, budget, timeout)
         except subprocess.TimeoutExpired:
-            return FourTiTwoResult(True, message=f"4ti2 timed out after {timeout} s",
+            return FourTiTwoResult(True, message=f"4ti2 timed out after {timeout:g} s",
                                    command=cmd)
         seconds = time.monotonic() - start
         if proc.returncode != 0 or not os.path.exists(project + ".ray"):

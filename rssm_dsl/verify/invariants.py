@@ -12,10 +12,11 @@ extreme ray and no non-minimal or duplicate row is ever stored. Arithmetic is ex
 with an overflow guard that switches to Python integers.
 
 The number of minimal semiflows can grow exponentially (a choice between two parallel blocks
-multiplies their branch counts), so the computation stops at ``max_rows`` intermediate rows or
-at a deadline, with a message. Rows that no longer touch any remaining column are already final
-minimal semiflows, so an interrupted run still returns the ones it completed (``complete`` is
-then false) and they still prove what they prove.
+multiplies their branch counts), so the computation stops at ``max_rows`` intermediate rows, at
+its own deadline, when the next step's matrices would not fit under the run's memory limit, or
+when the run's budget stops it (``budget.py``), with a message. Rows that no longer touch
+any remaining column are already final minimal semiflows, so an interrupted run still returns
+the ones it completed (``complete`` is then false) and they still prove what they prove.
 
 Safeness: a semiflow ``y`` with ``y_p > 0`` bounds place ``p`` by ``floor(y . m0 / y_p)``, so
 ``p`` is safe when ``y . m0 < 2 y_p`` (for a 0/1 semiflow: it carries one token). When every
@@ -32,10 +33,12 @@ import numpy as np
 import numpy.typing as npt
 
 from rssm_dsl.hpn.flat import FlatNet
+from rssm_dsl.verify.budget import Budget, LimitReached, format_size
 
 IntMatrix = npt.NDArray[np.int64] | npt.NDArray[np.object_]
 
 DEFAULT_MAX_ROWS = 20_000
+MAX_CELLS = 1 << 24                 # places x (places + transitions): beyond, not computed
 _SAFE_MAGNITUDE = 1 << 62
 _PAIR_CELLS = 1 << 24               # rows x pairs per adjacency-test block
 
@@ -91,6 +94,32 @@ class _Stopped(Exception):
     pass
 
 
+class _Limits:
+    """The computation's own deadline and the run's budget."""
+
+    def __init__(self, deadline: float | None, budget: Budget | None) -> None:
+        self.deadline, self.budget = deadline, budget
+
+    def check(self, where: str) -> None:
+        """Raise ``_Stopped`` at the deadline or when the run's budget stops it."""
+        if self.deadline is not None and time.monotonic() > self.deadline:
+            raise _Stopped(f"time limit reached {where}")
+        if self.budget is not None:
+            try:
+                self.budget.check()
+            except LimitReached as e:
+                by = "Ctrl-C" if e.stop.kind == "interrupt" else f"the run's {e.stop.kind} limit"
+                raise _Stopped(f"stopped by {by} {where}") from None
+
+    def need(self, nbytes: int, where: str) -> None:
+        """Raise ``_Stopped`` when ``nbytes`` more would not fit under the memory limit (the
+        run goes on without the rest of the invariants)."""
+        if self.budget is not None and not self.budget.fits(nbytes):
+            limit = self.budget.max_memory or 0
+            raise _Stopped(f"{where}, the next step would need about {format_size(nbytes)} "
+                           f"more, over the memory limit of {format_size(limit)}")
+
+
 def incidence_matrix(net: FlatNet) -> npt.NDArray[np.int64]:
     """C[p, t] = post - pre (test arcs cancel out)."""
     c = np.zeros((len(net.places), len(net.transitions)), dtype=np.int64)
@@ -106,6 +135,7 @@ def minimal_semiflows(
     c: npt.NDArray[np.int64],
     max_rows: int = DEFAULT_MAX_ROWS,
     deadline: float | None = None,
+    budget: Budget | None = None,
 ) -> tuple[list[list[int]], bool, str | None]:
     """The minimal P-semiflows of incidence matrix ``c`` (places x transitions).
 
@@ -114,18 +144,21 @@ def minimal_semiflows(
     finished are returned.
     """
     nplaces, ntrans = c.shape
-    a: IntMatrix = c.astype(np.int64).copy()
+    limits = _Limits(deadline, budget)
+    try:
+        limits.need(16 * nplaces * (nplaces + ntrans), "not computed")
+    except _Stopped as stop:
+        return [], False, str(stop)
+    a: IntMatrix = c if c.dtype == np.int64 else c.astype(np.int64)   # never written to
     y: IntMatrix = np.eye(nplaces, dtype=np.int64)
-    remaining = [j for j in range(ntrans) if a[:, j].any()]
+    remaining = np.flatnonzero(a.any(axis=0)).tolist() if a.size else []
     done = 0
     try:
         while remaining:
-            if deadline is not None and time.monotonic() > deadline:
-                raise _Stopped(
-                    f"time limit reached after eliminating {done} of {done + len(remaining)} "
-                    f"transition columns ({a.shape[0]} intermediate rows)")
+            limits.check(f"after eliminating {done} of {done + len(remaining)} transition "
+                         f"columns ({a.shape[0]} intermediate rows)")
             j = _pick_column(a, remaining)
-            a, y = _eliminate(a, y, j, max_rows, deadline)
+            a, y = _eliminate(a, y, j, max_rows, limits)
             remaining.remove(j)
             done += 1
             if a.shape[0] > max_rows:
@@ -134,27 +167,29 @@ def minimal_semiflows(
                     f"{done + len(remaining)} transition columns; this net has too many minimal "
                     f"P-semiflows to enumerate (raise the limit to try harder)")
     except _Stopped as stop:
-        finished = [i for i in range(a.shape[0])
-                    if not any(a[i, k] for k in remaining)] if a.shape[0] else []
-        return [_normalise([int(v) for v in y[i]]) for i in finished], False, str(stop)
+        return [_normalise([int(v) for v in y[i]]) for i in _finished(a, remaining)], False, \
+            str(stop)
     return [_normalise([int(v) for v in row]) for row in y], True, None
 
 
+def _finished(a: IntMatrix, remaining: list[int]) -> list[int]:
+    """The rows that touch no remaining column (already minimal semiflows)."""
+    touched = np.zeros(a.shape[0], dtype=np.bool_)
+    for lo in range(0, len(remaining), 256):
+        touched |= (a[:, remaining[lo:lo + 256]] != 0).any(axis=1)
+    return np.flatnonzero(~touched).tolist()
+
+
 def _pick_column(a: IntMatrix, remaining: list[int]) -> int:
-    """The column whose elimination adds the fewest rows (pos*neg - pos - neg)."""
-    best, best_cost = remaining[0], None
-    for j in remaining:
-        col = a[:, j]
-        npos = int((col > 0).sum())
-        nneg = int((col < 0).sum())
-        cost = npos * nneg - npos - nneg
-        if best_cost is None or cost < best_cost:
-            best, best_cost = j, cost
-    return best
+    """The column whose elimination adds the fewest rows (pos*neg - pos - neg); the first
+    such in ``remaining``."""
+    npos = np.count_nonzero(a > 0, axis=0)[remaining].astype(np.int64)
+    nneg = np.count_nonzero(a < 0, axis=0)[remaining].astype(np.int64)
+    return remaining[int(np.argmin(npos * nneg - npos - nneg))]
 
 
 def _eliminate(
-    a: IntMatrix, y: IntMatrix, j: int, max_rows: int, deadline: float | None,
+    a: IntMatrix, y: IntMatrix, j: int, max_rows: int, limits: _Limits,
 ) -> tuple[IntMatrix, IntMatrix]:
     col = a[:, j]
     pos = np.flatnonzero(col > 0)
@@ -163,6 +198,7 @@ def _eliminate(
     keep_a, keep_y = a[zero], y[zero]
     if len(pos) == 0 or len(neg) == 0:
         return keep_a, keep_y
+    limits.need(5 * y.size, f"while eliminating column {j}")
     support = (y != 0)
     supp_f = support.astype(np.float32)
     grid_p, grid_k = np.meshgrid(pos, neg, indexing="ij")
@@ -170,8 +206,7 @@ def _eliminate(
     block = max(1, _PAIR_CELLS // max(1, support.shape[0]))
     adjacent: list[npt.NDArray[np.bool_]] = []
     for start in range(0, len(pi), block):
-        if deadline is not None and time.monotonic() > deadline:
-            raise _Stopped(f"time limit reached while eliminating column {j}")
+        limits.check(f"while eliminating column {j}")
         bi, bk = pi[start:start + block], ki[start:start + block]
         outside = ~(support[bi] | support[bk])                 # pairs x places
         # rows whose support lies inside the union: no weight outside it
@@ -187,6 +222,7 @@ def _eliminate(
     pi, ki = pi[mask], ki[mask]
     if len(pi) == 0:
         return keep_a, keep_y
+    limits.need(3 * 8 * len(pi) * (a.shape[1] + y.shape[1]), f"while eliminating column {j}")
     fa = -col[ki]      # multiplier of the positive row (> 0)
     fb = col[pi]       # multiplier of the negative row (> 0)
     if a.dtype != np.object_ and _may_overflow(a, y, fa, fb):
@@ -224,11 +260,26 @@ def place_invariants(
     net: FlatNet,
     max_rows: int = DEFAULT_MAX_ROWS,
     time_limit: float | None = None,
+    budget: Budget | None = None,
 ) -> InvariantResult:
-    """The minimal P-semiflows of ``net`` and the places whose safeness they prove."""
+    """The minimal P-semiflows of ``net`` and the places whose safeness they prove.
+    ``time_limit`` is the computation's own; the run's ``budget`` may stop it earlier."""
     start = time.monotonic()
     deadline = None if time_limit is None else start + time_limit
-    flows, complete, message = minimal_semiflows(incidence_matrix(net), max_rows, deadline)
+    nplaces, ntrans = len(net.places), len(net.transitions)
+    if nplaces * (nplaces + ntrans) > MAX_CELLS:
+        return InvariantResult((), False, f"not computed: the net is too large for the dense "
+                               f"computation ({nplaces:,} places, {ntrans:,} transitions)",
+                               time.monotonic() - start)
+    if budget is None:
+        flows, complete, message = minimal_semiflows(incidence_matrix(net), max_rows, deadline)
+    else:
+        with budget.running("the place invariants"):
+            try:
+                flows, complete, message = minimal_semiflows(incidence_matrix(net), max_rows,
+                                                             deadline, budget)
+            except MemoryError:     # the run goes on without them
+                flows, complete, message = [], False, "not computed: an allocation failed"
     m0 = net.initial
     invariants = sorted(
         (Invariant(

@@ -39,6 +39,7 @@ import numpy as np
 import numpy.typing as npt
 
 from rssm_dsl.hpn.flat import FlatNet, Role
+from rssm_dsl.verify.budget import Budget, LimitReached
 from rssm_dsl.verify.netbits import NetBits, bits, to_words
 from rssm_dsl.verify.statespace import Graph, Ints, gather
 
@@ -61,6 +62,8 @@ class ProgressResult:
     violations: tuple[ProgressViolation, ...]
     checked: tuple[str, ...]        # subsystems checked
     skipped: tuple[str, ...]        # subsystems without ITERATION transitions
+    stopped: str | None = None      # a limit of the budget stopped the check (the
+    #                                 violations found before it are real)
 
 
 def subsystems_of(net: FlatNet) -> list[str]:
@@ -107,7 +110,8 @@ def _distinct(nodes: Ints, scratch: I64) -> Ints:
     return out
 
 
-def backward_closure(graph: Graph, seeds: Bools, within: Bools | None = None) -> Bools:
+def backward_closure(graph: Graph, seeds: Bools, within: Bools | None = None,
+                     budget: Budget | None = None) -> Bools:
     """States from which some seed state is reachable (seeds included), optionally only
     through states of ``within``."""
     ptr, order = graph.backward()
@@ -115,6 +119,8 @@ def backward_closure(graph: Graph, seeds: Bools, within: Bools | None = None) ->
     scratch = np.zeros(graph.size, dtype=np.int64)
     frontier: Ints = np.flatnonzero(reached)
     while frontier.size:
+        if budget is not None:
+            budget.check()
         preds: Ints = graph.src[gather(ptr, order, frontier)]
         keep = ~reached[preds]
         if within is not None:
@@ -127,7 +133,7 @@ def backward_closure(graph: Graph, seeds: Bools, within: Bools | None = None) ->
     return reached
 
 
-def forward_closure(graph: Graph, start: int) -> Bools:
+def forward_closure(graph: Graph, start: int, budget: Budget | None = None) -> Bools:
     """States reachable from ``start`` (all of them from the initial state 0)."""
     if start == 0:
         return np.ones(graph.size, dtype=np.bool_)
@@ -137,6 +143,8 @@ def forward_closure(graph: Graph, start: int) -> Bools:
     scratch = np.zeros(graph.size, dtype=np.int64)
     frontier: Ints = np.array([start], dtype=np.int64)
     while frontier.size:
+        if budget is not None:
+            budget.check()
         succ: Ints = graph.dst[gather(ptr, order, frontier)]
         succ = _distinct(succ[~reached[succ]], scratch)
         if succ.size == 0:
@@ -183,14 +191,15 @@ def shortest_path(graph: Graph, start: int, goal: Bools, allow_empty: bool = Tru
     raise ValueError("goal not reachable")
 
 
-def terminal_component(graph: Graph, start: int) -> tuple[int, Bools]:
+def terminal_component(graph: Graph, start: int, budget: Budget | None = None,
+                       ) -> tuple[int, Bools]:
     """A state of a terminal strongly connected component reachable from ``start``, and it."""
     x = start
     while True:
-        reach = forward_closure(graph, x)
+        reach = forward_closure(graph, x, budget)
         seed = np.zeros(graph.size, dtype=np.bool_)
         seed[x] = True
-        back = backward_closure(graph, seed, None if reach.all() else reach)
+        back = backward_closure(graph, seed, None if reach.all() else reach, budget)
         outside = reach & ~back
         if not outside.any():
             return x, reach
@@ -208,52 +217,72 @@ def marked_any(graph: Graph, mask: int, nwords: int) -> Bools:
 
 
 def check_progress(nb: NetBits, graph: Graph, subsystems: list[str] | None = None,
-                   ) -> ProgressResult:
-    """Subsystems that can lose progress (see the module docstring), with lassos."""
+                   budget: Budget | None = None) -> ProgressResult:
+    """Subsystems that can lose progress (see the module docstring), with lassos. A limit
+    of the budget ends the check: the subsystems checked before it and their violations are
+    returned, with ``stopped``."""
     net = nb.net
     names = subsystems_of(net) if subsystems is None else subsystems
-    n = graph.size
-    outdeg = np.bincount(graph.src, minlength=n)
-    can_deadlock = (backward_closure(graph, outdeg == 0) if not outdeg.all()
-                    else np.zeros(n, dtype=np.bool_))
     violations: list[ProgressViolation] = []
     checked: list[str] = []
-    skipped: list[str] = []
+    skipped = [s for s in names if not nb.iteration_mask(s)]
+    limits = budget if budget is not None else Budget()
+    with limits.running("the progress check"):
+        try:
+            _check_subsystems(nb, graph, [s for s in names if s not in skipped], limits,
+                              violations, checked)
+        except LimitReached as e:
+            return ProgressResult(tuple(violations), tuple(checked), tuple(skipped),
+                                  e.stop.message)
+        except MemoryError:
+            return ProgressResult(tuple(violations), tuple(checked), tuple(skipped),
+                                  limits.out_of_memory().message)
+    return ProgressResult(tuple(violations), tuple(checked), tuple(skipped))
+
+
+def _check_subsystems(nb: NetBits, graph: Graph, names: list[str], budget: Budget,
+                      violations: list[ProgressViolation], checked: list[str]) -> None:
+    """``check_progress`` for the subsystems ``names`` (all with ITERATION transitions):
+    each is appended to ``checked`` once decided, its violation (if any) first."""
+    n = graph.size
+    outdeg = np.bincount(graph.src, minlength=n)
+    can_deadlock = (backward_closure(graph, outdeg == 0, None, budget) if not outdeg.all()
+                    else np.zeros(n, dtype=np.bool_))
     # Fast path: one terminal component that every state reaches and that has edges; a
     # subsystem iterating inside it can always iterate again.
     unique_terminal: Bools | None = None
     if graph.src.size and not (outdeg == 0).any():
-        _, component = terminal_component(graph, 0)
-        if component.all() or backward_closure(graph, component).all():
+        _, component = terminal_component(graph, 0, budget)
+        if component.all() or backward_closure(graph, component, None, budget).all():
             unique_terminal = component
     for s in names:
-        it_mask = nb.iteration_mask(s)
-        if not it_mask:
-            skipped.append(s)
-            continue
-        checked.append(s)
+        budget.check(len(checked))
         is_it = np.zeros(nb.ntrans, dtype=np.bool_)
-        is_it[bits(it_mask)] = True
+        is_it[bits(nb.iteration_mask(s))] = True
         if unique_terminal is not None and (
                 unique_terminal[graph.src] & is_it[graph.trans]).any():
+            checked.append(s)
             continue
         seeds = np.zeros(n, dtype=np.bool_)
         seeds[graph.src[is_it[graph.trans]]] = True
-        can_iterate = backward_closure(graph, seeds)
+        can_iterate = backward_closure(graph, seeds, None, budget)
         stuck = ~can_iterate & ~can_deadlock
-        if not stuck.any():
-            continue
-        stuck &= marked_any(graph, live_places(net, s), nb.nwords)
+        if stuck.any():
+            stuck &= marked_any(graph, live_places(nb.net, s), nb.nwords)
         hits = np.flatnonzero(stuck)
-        if hits.size == 0:
-            continue
-        point = int(hits[0])
-        _, component = terminal_component(graph, point)
-        to_cycle, entry = shortest_path(graph, point, component)
-        goal = np.zeros(n, dtype=np.bool_)
-        goal[entry] = True
-        cycle, _ = shortest_path(graph, entry, goal, allow_empty=False)
-        violations.append(ProgressViolation(
-            subsystem=s, point=point, prefix=graph.path(point), to_cycle=to_cycle,
-            cycle=cycle, cycle_marking=graph.marking(entry)))
-    return ProgressResult(tuple(violations), tuple(checked), tuple(skipped))
+        if hits.size:
+            violations.append(_lasso(graph, s, int(hits[0]), budget))
+        checked.append(s)
+
+
+def _lasso(graph: Graph, s: str, point: int, budget: Budget) -> ProgressViolation:
+    """The violation of ``s`` at its point of no return: the path to it, then to a
+    terminal component, and a cycle there."""
+    _, component = terminal_component(graph, point, budget)
+    to_cycle, entry = shortest_path(graph, point, component)
+    goal = np.zeros(graph.size, dtype=np.bool_)
+    goal[entry] = True
+    cycle, _ = shortest_path(graph, entry, goal, allow_empty=False)
+    return ProgressViolation(
+        subsystem=s, point=point, prefix=graph.path(point), to_cycle=to_cycle,
+        cycle=cycle, cycle_marking=graph.marking(entry))

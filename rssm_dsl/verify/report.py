@@ -2,7 +2,15 @@
 
 Every counterexample is a firing sequence of flat transitions, each printed as
 ``label (file:line)``, followed by the marking it ends in, named by place labels.
-Exit codes (``exit_code``): 0 verified, 1 violated, 2 inconclusive.
+
+The report always says what was proved, what was not and why: per property (safeness,
+deadlock freedom, progress) proved, violated, not decided (and why: the limit that stopped the
+run, in which phase, or the search that stopped early) or not checked (``--no-progress-check``).
+
+Exit codes (``exit_code``): 0 verified (safeness, deadlock freedom and progress), 1 violated,
+3 inconclusive (a limit was reached or a property was not decided), 4 verified without the
+progress check (safe and deadlock-free; progress not checked), 130 interrupted (Ctrl-C) with
+no violation found. 2 is left to usage errors and bad input (``rssm_dsl.commands.common``).
 """
 
 from __future__ import annotations
@@ -13,19 +21,26 @@ from enum import Enum
 from typing import Any
 
 from rssm_dsl.hpn.flat import FlatNet, FlatTransition
+from rssm_dsl.source import Span
+from rssm_dsl.verify.budget import INTERRUPT, Stop, format_seconds, format_size
 
 
 class Verdict(str, Enum):
     VERIFIED = "verified"
     VIOLATED = "violated"
     INCONCLUSIVE = "inconclusive"
+    VERIFIED_WITHOUT_PROGRESS = "verified_without_progress"   # progress not asked for
 
 
-EXIT_CODES = {Verdict.VERIFIED: 0, Verdict.VIOLATED: 1, Verdict.INCONCLUSIVE: 2}
+EXIT_VERIFIED, EXIT_VIOLATED, EXIT_INCONCLUSIVE, EXIT_WITHOUT_PROGRESS = 0, 1, 3, 4
+EXIT_INTERRUPTED = 130
+EXIT_CODES = {Verdict.VERIFIED: EXIT_VERIFIED, Verdict.VIOLATED: EXIT_VIOLATED,
+              Verdict.INCONCLUSIVE: EXIT_INCONCLUSIVE,
+              Verdict.VERIFIED_WITHOUT_PROGRESS: EXIT_WITHOUT_PROGRESS}
 
 
 def exit_code(verdict: Verdict) -> int:
-    """0 verified, 1 violated, 2 inconclusive."""
+    """0 verified, 1 violated, 3 inconclusive, 4 verified without the progress check."""
     return EXIT_CODES[verdict]
 
 
@@ -104,6 +119,26 @@ class InvariantLine:
 
 
 @dataclass(frozen=True)
+class FreeCondition:
+    """A condition on data the state space leaves a free choice: every outcome is explored
+    (an over-approximation, sound for deadlock freedom; DESIGN.md section 5)."""
+
+    kind: str              # "terminal/error" (a behaviour's t_4 / t_out) or "switch"
+    where: str             # the subsystem (behaviour), or the switch in words
+    condition: str         # the condition's text
+    span: Span
+
+    def text(self) -> str:
+        what = (f"{self.where} [{self.condition}]" if self.kind == "switch" else
+                f"{self.where}: {self.kind} [{self.condition}]")
+        return f"{what} ({self.span.location})"
+
+    def to_json(self) -> dict[str, Any]:
+        return {"kind": self.kind, "where": self.where, "condition": self.condition,
+                "file": self.span.file, "line": self.span.line, "column": self.span.column}
+
+
+@dataclass(frozen=True)
 class VerifyReport:
     system: str
     verdict: Verdict
@@ -134,10 +169,51 @@ class VerifyReport:
     notes: tuple[str, ...] = field(default=())
     # subsystems shown to lose progress without a firing sequence (compositional check)
     progress_lost: tuple[str, ...] = field(default=())
+    # the limits of the run and what stopped it
+    stop: Stop | None = None                   # the limit that ended the run early
+    progress_requested: bool = True            # False: --no-progress-check
+    why_undecided: str | None = None           # why what is not decided is not
+    time_limit: float | None = None
+    max_memory: int | None = None              # bytes
+    peak_memory: int = 0                       # bytes resident at most, as measured
+    # conditions on data: the data cases decided by new(x) tracked in the state (datanet.py),
+    # and the conditions left free choices
+    new_tracked_cases: int = 0
+    free_conditions: tuple[FreeCondition, ...] = field(default=())
 
     @property
     def exit_code(self) -> int:
+        """The verdict's code; 130 for a run interrupted (Ctrl-C) before any violation."""
+        if (self.stop is not None and self.stop.kind == INTERRUPT
+                and self.verdict is not Verdict.VIOLATED):
+            return EXIT_INTERRUPTED
         return exit_code(self.verdict)
+
+    def properties(self) -> dict[str, dict[str, str | None]]:
+        """Per property: ``status`` (proved, violated, not decided, not checked), ``by``
+        (what proved or found it) and ``why`` (why it is not decided or not checked)."""
+        why = self.why_undecided or "the state space was not explored completely"
+
+        def status(value: bool | None, by: str | None = None) -> dict[str, str | None]:
+            if value is None:
+                return {"status": "not decided", "by": None, "why": why}
+            return {"status": "proved" if value else "violated", "by": by, "why": None}
+
+        progress = status(self.progress_ok, self.method)
+        if not self.progress_requested:
+            progress = {"status": "not checked", "by": None, "why": "--no-progress-check"}
+        return {"safeness": status(self.safe, self.safe_by),
+                "deadlock_freedom": status(self.deadlock_free, self.method),
+                "progress": progress}
+
+    def headline(self) -> str:
+        """The verdict in one line, with why when it is not plain."""
+        if self.verdict is Verdict.VERIFIED_WITHOUT_PROGRESS:
+            return ("VERIFIED (progress not checked): safe and deadlock-free; loss of progress "
+                    "was not checked (--no-progress-check)")
+        if self.verdict is Verdict.INCONCLUSIVE:
+            return "INCONCLUSIVE: " + (self.why_undecided or "not every property was decided")
+        return str(self.verdict.value).upper()
 
     def to_json(self) -> dict[str, Any]:
         return {
@@ -171,7 +247,26 @@ class VerifyReport:
             list(self.unreachable_behaviours),
             "seconds": round(self.seconds, 3),
             "notes": list(self.notes),
+            # added with the limits (issue 15); the fields above are unchanged
+            "headline": self.headline(),
+            "properties": self.properties(),
+            "progress_check": self.progress_requested,
+            "stopped_by": self.stop.to_json() if self.stop is not None else None,
+            "limits": {"time_seconds": self.time_limit, "memory_bytes": self.max_memory},
+            "peak_memory_bytes": self.peak_memory,
+            "conditions": {"new_tracked_cases": self.new_tracked_cases,
+                           "free_choices": [c.to_json() for c in self.free_conditions]},
         }
+
+
+def _limits_text(r: VerifyReport) -> str:
+    """The run's limits and its peak memory; the limit that stopped it, and when."""
+    time_limit = "no time limit" if r.time_limit is None else f"time {format_seconds(r.time_limit)}"
+    memory = "no memory limit" if r.max_memory is None else f"memory {format_size(r.max_memory)}"
+    text = f"{time_limit}, {memory} (peak {format_size(r.peak_memory)} resident)"
+    if r.stop is not None:
+        text += f"; stopped after {r.stop.at:.1f} s: {r.stop.message}"
+    return text
 
 
 def render_json(report: VerifyReport, indent: int | None = 2) -> str:
@@ -184,26 +279,30 @@ def _yes_no(value: bool | None, yes: str, no: str, unknown: str = "not decided")
 
 def render_text(report: VerifyReport, max_invariants: int = 20) -> str:
     r = report
-    out = [f"system {r.system}: {r.verdict.value.upper()}"]
-    safe = _yes_no(r.safe, "safe", "NOT SAFE")
+    out = [f"system {r.system}: {r.headline()}"]
+    why = r.stop.short if r.stop is not None else r.why_undecided
+    undecided = f"not decided ({why})" if why else "not decided"
+    safe = _yes_no(r.safe, "safe", "NOT SAFE", undecided)
     if r.safe_by:
         safe += f" (proved by {r.safe_by})" if r.safe else f" (found by {r.safe_by})"
     out.append(f"  safeness:   {safe}")
     out.append("  deadlocks:  " + _yes_no(
-        r.deadlock_free, "none", f"{r.deadlock_count} reachable deadlock marking(s)"))
+        r.deadlock_free, "none", f"{r.deadlock_count} reachable deadlock marking(s)",
+        undecided))
     out.append("  progress:   " + _yes_no(
         r.progress_ok, "no subsystem with ITERATION transitions to check"
         if not r.progress_checked else "no subsystem can get stuck while the rest keeps "
         f"running ({len(r.progress_checked)} checked)",
         f"{len(r.progress) + len(r.progress_lost)} subsystem(s) can get stuck while the rest "
         "keeps running",
-        "not decided (see the notes; --no-progress-check skips it)"
-        if any(n.startswith(("progress not decided", "compositional check: time limit",
-                             "compositional check: progress")) for n in r.notes)
-        else "not checked" if not r.progress_checked else "not decided"))
-    out.append(f"  states:     {r.states} explored ({r.method}"
-               f"{'' if r.complete else ', incomplete'}), {r.edges} firings, depth {r.depth},"
-               f" {r.seconds:.2f} s")
+        "not checked (--no-progress-check)" if not r.progress_requested else undecided))
+    if r.method:
+        out.append(f"  states:     {r.states} explored ({r.method}"
+                   f"{'' if r.complete else ', incomplete'}), {r.edges} firings, depth "
+                   f"{r.depth}, {r.seconds:.2f} s")
+    else:
+        out.append(f"  states:     none explored (no search ran), {r.seconds:.2f} s")
+    out.append("  limits:     " + _limits_text(r))
     for note in r.notes:
         out.append(f"  note: {note}")
     if r.unsafe is not None:
@@ -247,4 +346,21 @@ def render_text(report: VerifyReport, max_invariants: int = 20) -> str:
         out.append("")
         out.append("unreachable behaviours:")
         out += [f"  {b}" for b in r.unreachable_behaviours]
+    out += _conditions_text(r)
     return "\n".join(out) + "\n"
+
+
+def _conditions_text(r: VerifyReport) -> list[str]:
+    """How the conditions on data were explored: new(x) of the data cases tracked in the
+    state; every other condition a free choice, listed."""
+    if not r.new_tracked_cases and not r.free_conditions:
+        return []
+    out = ["", "conditions on data:"]
+    if r.new_tracked_cases:
+        out.append(f"  new(x): tracked in the state; {r.new_tracked_cases} data case(s) fire "
+                   "only when the receives allow them")
+    if r.free_conditions:
+        out.append(f"  abstracted as free choices (every outcome explored): "
+                   f"{len(r.free_conditions)}")
+        out += [f"    {c.text()}" for c in r.free_conditions]
+    return out

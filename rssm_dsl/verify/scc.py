@@ -3,10 +3,14 @@ proviso of ``stubborn``."""
 
 from __future__ import annotations
 
+from collections.abc import Callable
 
-def components(succ: list[list[int]]) -> tuple[list[int], int]:
+
+def components(succ: list[list[int]], check: Callable[[], object] | None = None,
+               ) -> tuple[list[int], int]:
     """Tarjan, iteratively: the strongly connected component of every node and their number;
-    components are numbered in the order Tarjan closes them, successors first."""
+    components are numbered in the order Tarjan closes them, successors first. ``check`` is
+    called every 65,536 nodes closed (a budget's check, which may raise)."""
     n = len(succ)
     index = [-1] * n
     low = [0] * n
@@ -48,6 +52,8 @@ def components(succ: list[list[int]]) -> tuple[list[int], int]:
                 u = work[-1][0]
                 if low[v] < low[u]:
                     low[u] = low[v]
+            if check is not None and v & 0xFFFF == 0:
+                check()
             if low[v] == index[v]:
                 while True:
                     w = stack.pop()

@@ -13,8 +13,10 @@ exploration stops there, because the bitset semantics ends at the first unsafe m
 transitions enabled somewhere, the places marked somewhere, and optionally the reachability
 graph (edges ``src -> dst`` labelled with the transition) for the progress check.
 
-Limits: ``max_states`` and ``time_limit`` stop the search with ``complete = False`` and a
-reason; ``progress`` is called after every level.
+Limits: ``max_states`` and the run's ``budget`` (deadline, memory, Ctrl-C; ``budget.py``) or,
+without one, ``time_limit`` stop the search with ``complete = False`` and a reason. The budget
+is checked after every block of a level, and before every batch insertion with the memory
+that insertion will take. ``progress`` is called after every level.
 """
 
 from __future__ import annotations
@@ -26,6 +28,7 @@ from dataclasses import dataclass, field
 import numpy as np
 import numpy.typing as npt
 
+from rssm_dsl.verify.budget import Budget, LimitReached
 from rssm_dsl.verify.netbits import NetBits, from_words, to_words
 
 I64 = npt.NDArray[np.int64]
@@ -152,10 +155,12 @@ def explore_full(
     keep_graph: bool = True,
     max_counterexamples: int = 3,
     progress: ProgressCallback | None = None,
+    budget: Budget | None = None,
 ) -> SearchResult:
-    """Every reachable marking, breadth first (see the module docstring)."""
+    """Every reachable marking, breadth first (see the module docstring). ``time_limit``
+    applies only without a ``budget``."""
     start = time.monotonic()
-    deadline = None if time_limit is None else start + time_limit
+    limits = budget if budget is not None else Budget(time_limit)
     nw, nt = bits.nwords, bits.ntrans
     kernel = _Kernel(bits)
     init = np.array([to_words(bits.initial, nw)], dtype=np.uint64)
@@ -163,9 +168,7 @@ def explore_full(
     visited.lookup_insert(kernel.keys(init), init)
     level_parent: list[I32] = [np.array([-1], dtype=np.int32)]
     level_via: list[I32] = [np.array([-1], dtype=np.int32)]
-    e_src: list[I32] = []
-    e_dst: list[I32] = []
-    e_trans: list[I32] = []
+    edges: tuple[list[I32], list[I32], list[I32]] = ([], [], [])
     dead_states: list[I64] = []
     fired = np.zeros(nt, dtype=np.bool_)
     frontier, base, depth, nedges = init, 0, 0, 0
@@ -173,64 +176,102 @@ def explore_full(
     unsafe_at: tuple[int, int, int] | None = None     # (state, transition, places)
     block = max(1, _CELLS // max(1, nt))
 
-    while frontier.shape[0]:
-        level = _expand(kernel, frontier, base, block, deadline, dead_states)
-        if level.unsafe_at is not None or level.timed_out:
-            unsafe_at = level.unsafe_at
-            stopped = None if unsafe_at is not None else f"time limit of {time_limit} s reached"
-            break
-        succ, src, trans = level.succ, level.src, level.trans
-        fired[trans] = True
-        nedges += int(src.shape[0])
-        base += frontier.shape[0]
-        if succ.shape[0] == 0:
-            frontier = succ
-            continue
-        ids, new_pos = visited.lookup_insert(kernel.keys(succ), succ)
-        if keep_graph:
-            e_src.append(src.astype(np.int32))
-            e_trans.append(trans.astype(np.int32))
-            e_dst.append(ids.astype(np.int32))
-        frontier = visited.store[visited.size - new_pos.size:visited.size]
-        if new_pos.size:
-            depth += 1                      # the BFS depth of the deepest state so far
-        level_parent.append(src[new_pos].astype(np.int32))
-        level_via.append(trans[new_pos].astype(np.int32))
-        if progress is not None:
-            progress(Progress(visited.size, nedges, depth, frontier.shape[0],
-                              time.monotonic() - start, "full"))
-        if visited.size > max_states:
-            stopped = f"state limit of {max_states} states reached"
-            break
-        if deadline is not None and time.monotonic() > deadline:
-            stopped = f"time limit of {time_limit} s reached"
-            break
+    with limits.running("the full exploration"):
+        try:
+            while frontier.shape[0]:
+                limits.check(visited.size)
+                level = _expand(kernel, frontier, base, block, limits, dead_states)
+                if level.unsafe_at is not None:
+                    unsafe_at = level.unsafe_at
+                    break
+                src, trans = level.src, level.trans
+                fired[trans] = True
+                nedges += int(src.shape[0])
+                base += frontier.shape[0]
+                if src.shape[0] == 0:
+                    frontier = np.zeros((0, nw), np.uint64)
+                    continue
+                ids, new_pos = _insert(visited, kernel, level.succ, limits,
+                                       12 * src.shape[0] if keep_graph else 0)
+                if keep_graph:
+                    edges[0].append(src.astype(np.int32))
+                    edges[2].append(trans.astype(np.int32))
+                    edges[1].append(ids.astype(np.int32))
+                frontier = visited.store[visited.size - new_pos.size:visited.size]
+                if new_pos.size:
+                    depth += 1                      # the BFS depth of the deepest state so far
+                level_parent.append(src[new_pos].astype(np.int32))
+                level_via.append(trans[new_pos].astype(np.int32))
+                if progress is not None:
+                    progress(Progress(visited.size, nedges, depth, frontier.shape[0],
+                                      time.monotonic() - start, "full"))
+                if visited.size > max_states:
+                    stopped = f"state limit of {max_states} states reached"
+                    break
+        except LimitReached as e:
+            stopped = e.stop.message
+        except MemoryError:
+            stopped = limits.out_of_memory().message
+        if stopped is not None:             # free the graph's edges at once
+            edges = ([], [], [])
 
-    return _full_result(bits, visited, level_parent, level_via, (e_src, e_dst, e_trans),
+    return _full_result(bits, visited, level_parent, level_via, edges,
                         dead_states, fired, unsafe_at, stopped, nedges, depth, start,
                         keep_graph, max_counterexamples)
 
 
 @dataclass
 class _Level:
-    """The successors of one BFS level (or why its expansion stopped)."""
+    """The successors of one BFS level, in parts (or the unsafe firing that stopped its
+    expansion)."""
 
-    succ: U64
+    succ: list[U64]
     src: I64
     trans: I64
     unsafe_at: tuple[int, int, int] | None = None
-    timed_out: bool = False
 
 
-def _expand(kernel: _Kernel, frontier: U64, base: int, block: int, deadline: float | None,
+_BATCH = 1 << 18          # successors looked up in the visited table at once
+
+
+def _insert(visited: _Table, kernel: _Kernel, parts: list[U64], budget: Budget,
+            graph_bytes: int) -> tuple[I64, I64]:
+    """Look up (and add) the successors of a level, a batch at a time, the budget checked
+    before each batch with the memory it will take: (id per successor, positions of the new
+    ones in id order)."""
+    ids_parts: list[I64] = []
+    new_parts: list[I64] = []
+    offset = 0
+    k = 0
+    while k < len(parts):
+        group = [parts[k]]
+        size = parts[k].shape[0]
+        k += 1
+        while k < len(parts) and size + parts[k].shape[0] <= _BATCH:
+            group.append(parts[k])
+            size += parts[k].shape[0]
+            k += 1
+        batch = group[0] if len(group) == 1 else np.concatenate(group)
+        budget.check(visited.size, extra=visited.growth(size) + batch.nbytes + graph_bytes)
+        ids, new = visited.lookup_insert(kernel.keys(batch), batch)
+        ids_parts.append(ids)
+        new_parts.append(new + offset)
+        offset += size
+    if len(ids_parts) == 1:
+        return ids_parts[0], new_parts[0]
+    return np.concatenate(ids_parts), np.concatenate(new_parts)
+
+
+def _expand(kernel: _Kernel, frontier: U64, base: int, block: int, budget: Budget,
             dead_states: list[I64]) -> _Level:
     """Fire every enabled transition of every state of ``frontier`` (numbered from
-    ``base``), in blocks; dead states are added to ``dead_states``."""
+    ``base``), in blocks; dead states are added to ``dead_states``. The budget is checked
+    after every block, with the memory the level's successors take."""
     succ_parts: list[U64] = []
     src_parts: list[I64] = []
     t_parts: list[I64] = []
-    empty = _Level(np.zeros((0, kernel.nw), np.uint64), np.zeros(0, np.int64),
-                   np.zeros(0, np.int64))
+    empty = _Level([], np.zeros(0, np.int64), np.zeros(0, np.int64))
+    held = 0
     for lo in range(0, frontier.shape[0], block):
         f = frontier[lo:lo + block]
         si, ti = np.nonzero(kernel.enabled(f))
@@ -246,13 +287,11 @@ def _expand(kernel: _Kernel, frontier: U64, base: int, block: int, deadline: flo
         succ_parts.append(succ)
         src_parts.append(si.astype(np.int64) + base + lo)
         t_parts.append(kernel.perm[ti])
-        if deadline is not None and time.monotonic() > deadline:
-            empty.timed_out = True
-            return empty
+        held += 16 * si.shape[0]
+        budget.check(extra=held)          # joining src and trans takes as much again
     if not succ_parts:
         return empty
-    return _Level(np.concatenate(succ_parts), np.concatenate(src_parts),
-                  np.concatenate(t_parts))
+    return _Level(succ_parts, np.concatenate(src_parts), np.concatenate(t_parts))
 
 
 def _full_result(bits: NetBits, visited: _Table, level_parent: list[I32], level_via: list[I32],
@@ -273,14 +312,13 @@ def _full_result(bits: NetBits, visited: _Table, level_parent: list[I32], level_
         trans=np.concatenate(e_trans) if e_trans else z,
     )
     dead = np.concatenate(dead_states) if dead_states else np.zeros(0, dtype=np.int64)
-    deadlocks: list[Trace] = []
-    final_count = 0
-    for s in dead.tolist():
-        m = graph.marking(s)
-        if bits.is_final(m):
-            final_count += 1
-        elif len(deadlocks) < max_counterexamples:
-            deadlocks.append(Trace(graph.path(s), m))
+    final = np.zeros(dead.shape[0], dtype=np.bool_)
+    if bits.final and dead.size:
+        words = np.array(to_words(bits.final, bits.nwords), dtype=np.uint64)
+        final = ((states[dead] & words) == words).all(axis=1)
+    final_count = int(final.sum())
+    deadlocks = [Trace(graph.path(s), graph.marking(s))
+                 for s in dead[~final][:max_counterexamples].tolist()]
     unsafe = None
     if unsafe_at is not None:
         s, t, places = unsafe_at
@@ -398,6 +436,19 @@ class _Table:
         self.owner: I32 = np.zeros(capacity, dtype=np.int32)
         self.store: U64 = np.zeros((1024, nw), dtype=np.uint64)
         self.hashes: U64 = np.zeros(1024, dtype=np.uint64)
+
+    def growth(self, n: int) -> int:
+        """Bytes ``lookup_insert`` of ``n`` candidates may allocate (a larger table, a
+        larger store, its working arrays)."""
+        extra = 48 * n
+        if 2 * (self.size + n) > self.slots.shape[0]:
+            cap = self.slots.shape[0]
+            while 2 * (self.size + n) > cap:
+                cap *= 2
+            extra += 8 * cap + 24 * self.size
+        if self.size + n > self.store.shape[0]:
+            extra += 8 * (self.nw + 1) * max(self.size + n, 2 * self.store.shape[0])
+        return extra
 
     def _grow_store(self, need: int) -> None:
         if need <= self.store.shape[0]:

@@ -71,6 +71,7 @@ from collections.abc import Callable
 
 import numpy as np
 
+from rssm_dsl.verify.budget import Budget, LimitReached
 from rssm_dsl.verify.netbits import NetBits, bits, to_words
 from rssm_dsl.verify.scc import components
 from rssm_dsl.verify.statespace import Graph, Progress, ProgressCallback, SearchResult, Trace
@@ -205,25 +206,38 @@ class StubbornExplorer:
         max_counterexamples: int = 3,
         progress: ProgressCallback | None = None,
         keep_graph: bool = False,
+        budget: Budget | None = None,
     ) -> SearchResult:
+        """``time_limit`` applies only without a ``budget``."""
         proviso = self.proviso and self.reduce
         keep_graph = keep_graph or proviso
-        clock = _Clock(time.monotonic(), time_limit, progress,
-                       "stubborn" if self.reduce else "python")
+        limits = budget if budget is not None else Budget(time_limit)
+        clock = _Clock(time.monotonic(), progress, "stubborn" if self.reduce else "python")
         m0 = self.nb.initial
         st = _Search(m0, self.initial_enabled(m0))
         expand = self._expander(st, keep_graph, proviso)
-        while True:
-            stopped = self._breadth_first(st, expand, max_states, clock, proviso)
-            if stopped is not None or not proviso:
-                break
-            # cycle proviso: every cycle of partly expanded markings gets one expanded fully
-            if not self._expand_cycles(st, expand):
-                break
-            if clock.past_deadline():
-                stopped = clock.timeout()
-                break
-        return self._result(st, stopped, keep_graph, max_counterexamples, clock.start)
+        stopped: str | None = None
+        with limits.running("the stubborn-set exploration" if self.reduce
+                            else "the explicit exploration"):
+            try:
+                while True:
+                    stopped = self._breadth_first(st, expand, max_states, clock, limits,
+                                                  proviso)
+                    if stopped is not None or not proviso:
+                        break
+                    # cycle proviso: every cycle of partly expanded markings gets one
+                    # expanded fully
+                    if not self._expand_cycles(st, expand, limits):
+                        break
+            except LimitReached as e:
+                stopped = e.stop.message
+            except MemoryError:
+                stopped = limits.out_of_memory().message
+            if stopped is not None:         # free what only the graph needed
+                st.e_src, st.e_dst, st.e_trans = [], [], []
+                st.index.clear()
+            return self._result(st, stopped, keep_graph, max_counterexamples, clock.start,
+                                limits)
 
     def _expander(self, st: _Search, keep_graph: bool, proviso: bool,
                   ) -> Callable[[int, int, int, int], int]:
@@ -262,7 +276,8 @@ class StubbornExplorer:
         return expand
 
     def _breadth_first(self, st: _Search, expand: Callable[[int, int, int, int], int],
-                       max_states: int, clock: _Clock, proviso: bool) -> str | None:
+                       max_states: int, clock: _Clock, budget: Budget,
+                       proviso: bool) -> str | None:
         """Explore the queue to its end; why the search stopped early, or None."""
         nb, produce, stubborn = self.nb, self.produce, self.stubborn
         queue, markings, fired_of = st.queue, st.markings, st.fired_of
@@ -287,18 +302,19 @@ class StubbornExplorer:
             st.edges += expand(i, m, en, fire)
             if len(markings) > max_states:
                 return f"state limit of {max_states} states reached"
-            if count & 1023 == 0:
-                if clock.past_deadline():
-                    return clock.timeout()
+            if count & 63 == 0:
+                budget.check(len(markings))
                 clock.report(st, i)
         return None
 
-    def _expand_cycles(self, st: _Search, expand: Callable[[int, int, int, int], int]) -> bool:
+    def _expand_cycles(self, st: _Search, expand: Callable[[int, int, int, int], int],
+                       budget: Budget) -> bool:
         """Expand fully one marking of each cycle of partly expanded markings; False when
         there is no such cycle (the search is over)."""
         n = len(st.markings)
         breakers = _cycle_breakers(n, st.e_src, st.e_dst,
-                                   [st.fired_of[v] != st.enabled_of[v] for v in range(n)])
+                                   [st.fired_of[v] != st.enabled_of[v] for v in range(n)],
+                                   budget)
         for v in breakers:
             rest = st.enabled_of[v] & ~st.fired_of[v]
             st.fired_of[v] = st.enabled_of[v]
@@ -307,7 +323,7 @@ class StubbornExplorer:
         return bool(breakers)
 
     def _result(self, st: _Search, stopped: str | None, keep_graph: bool,
-                max_counterexamples: int, start: float) -> SearchResult:
+                max_counterexamples: int, start: float, budget: Budget) -> SearchResult:
         markings = st.markings
         traces = [Trace(st.path(k), markings[k]) for k in st.deadlocks[:max_counterexamples]]
         unsafe_trace = None
@@ -316,14 +332,13 @@ class StubbornExplorer:
             unsafe_trace = Trace((*st.path(k), t), markings[k], t, clash)
         graph = None
         if keep_graph and stopped is None:
-            nw = self.nb.nwords
-            states = np.array([to_words(x, nw) for x in markings],
-                              dtype=np.uint64).reshape(len(markings), nw)
-            graph = Graph(
-                states=states, parent=np.array(st.parent, dtype=np.int32),
-                via=np.array(st.via, dtype=np.int32), src=np.array(st.e_src, dtype=np.int32),
-                dst=np.array(st.e_dst, dtype=np.int32),
-                trans=np.array(st.e_trans, dtype=np.int32))
+            # a limit reached here leaves the search complete, without its graph
+            try:
+                graph = _graph(st, self.nb.nwords, budget)
+            except LimitReached:
+                pass
+            except MemoryError:
+                budget.out_of_memory()
         return SearchResult(
             method="stubborn" if self.reduce else "python", states=len(markings),
             edges=st.edges,
@@ -365,23 +380,32 @@ class _Search:
         return tuple(reversed(steps))
 
 
-class _Clock:
-    """The time limit and the progress reports of a search."""
+def _graph(st: _Search, nw: int, budget: Budget) -> Graph:
+    """The explored graph as arrays (the markings converted a chunk at a time, the budget
+    checked between chunks)."""
+    markings = st.markings
+    states = np.zeros((len(markings), nw), dtype=np.uint64)
+    budget.check(extra=states.nbytes + 12 * len(st.e_src))
+    chunk = 1 << 16
+    for lo in range(0, len(markings), chunk):
+        part = markings[lo:lo + chunk]
+        states[lo:lo + len(part)] = np.array([to_words(x, nw) for x in part],
+                                             dtype=np.uint64).reshape(len(part), nw)
+        budget.check()
+    return Graph(states=states, parent=np.array(st.parent, dtype=np.int32),
+                 via=np.array(st.via, dtype=np.int32), src=np.array(st.e_src, dtype=np.int32),
+                 dst=np.array(st.e_dst, dtype=np.int32),
+                 trans=np.array(st.e_trans, dtype=np.int32))
 
-    def __init__(self, start: float, time_limit: float | None,
-                 progress: ProgressCallback | None, method: str) -> None:
+
+class _Clock:
+    """The progress reports of a search."""
+
+    def __init__(self, start: float, progress: ProgressCallback | None, method: str) -> None:
         self.start = start
-        self.time_limit = time_limit
-        self.deadline = None if time_limit is None else start + time_limit
         self.progress = progress
         self.method = method
         self.last_report = 0.0
-
-    def past_deadline(self) -> bool:
-        return self.deadline is not None and time.monotonic() > self.deadline
-
-    def timeout(self) -> str:
-        return f"time limit of {self.time_limit} s reached"
 
     def report(self, st: _Search, i: int) -> None:
         now = time.monotonic()
@@ -391,18 +415,21 @@ class _Clock:
                                    now - self.start, self.method))
 
 
-def _cycle_breakers(n: int, src: list[int], dst: list[int], partial: list[bool]) -> list[int]:
+def _cycle_breakers(n: int, src: list[int], dst: list[int], partial: list[bool],
+                    budget: Budget | None = None) -> list[int]:
     """One marking (the lowest) per cycle-carrying strongly connected component of the
     subgraph of partly expanded markings, components in the order Tarjan closes them."""
     succ: list[list[int]] = [[] for _ in range(n)]
     selfloop = [False] * n
-    for a, b in zip(src, dst, strict=True):
+    for k, (a, b) in enumerate(zip(src, dst, strict=True)):
         if partial[a] and partial[b]:
             if a == b:
                 selfloop[a] = True
             else:
                 succ[a].append(b)
-    comp, ncomp = components(succ)
+        if budget is not None and k & 0xFFFF == 0:
+            budget.check()
+    comp, ncomp = components(succ, budget.check if budget is not None else None)
     lowest = [n] * ncomp
     size = [0] * ncomp
     cyclic = [False] * ncomp
@@ -423,6 +450,7 @@ def explore_reduced(
     progress: ProgressCallback | None = None,
     reduce: bool = True,
     for_progress: bool = False,
+    budget: Budget | None = None,
 ) -> SearchResult:
     """Deadlocks and safeness by stubborn-set search (see the module docstring).
 
@@ -432,4 +460,4 @@ def explore_reduced(
     """
     explorer = StubbornExplorer(net_bits, safe_places, reduce, proviso=for_progress)
     return explorer.explore(max_states, time_limit, max_counterexamples, progress,
-                            keep_graph=for_progress)
+                            keep_graph=for_progress, budget=budget)

@@ -21,9 +21,14 @@ Pipeline:
      too); beyond, the compositional check; the stubborn-set search (as for ``"on"``) runs
      when that gives no verdict, or to find a counterexample for a violation it found.
 3. Verdict: *violated* when any violation was found (a found deadlock or unsafe firing is real
-   even if the search was cut short); *verified* when safeness, deadlock freedom and (when
-   checked) progress are all established; otherwise *inconclusive*, with the reason in the
-   notes.
+   even if the search was cut short); *verified* when safeness, deadlock freedom and progress
+   are all established; *verified without progress* when safeness and deadlock freedom are
+   and progress was not asked for (``check_progress=False``); otherwise *inconclusive*, with
+   the reason (``why_undecided``) and the notes.
+
+Limits: one ``Budget`` (``budget.py``: deadline, memory limit, Ctrl-C) is shared by every phase;
+the first limit reached ends the run (``report.stop``: which limit, in which phase), and what
+was decided before it stands.
 
 A marking is *final* when the net has final places and all of them are marked; a deadlock in
 a final marking is the system having finished, not an error.
@@ -32,11 +37,13 @@ a final marking is the system having finished, not an error.
 from __future__ import annotations
 
 import time
-from collections.abc import Callable, Collection
+from collections.abc import Collection
 from dataclasses import dataclass
 
 from rssm_dsl.hpn.flat import FlatNet, FlatTransition
+from rssm_dsl.verify.budget import Budget
 from rssm_dsl.verify.compose.check import ComposeResult, compose_check
+from rssm_dsl.verify.datanet import track_new
 from rssm_dsl.verify.invariants import DEFAULT_MAX_ROWS, InvariantResult, place_invariants
 from rssm_dsl.verify.netbits import NetBits, bits, to_mask
 from rssm_dsl.verify.progress import check_progress, subsystems_of
@@ -67,6 +74,8 @@ class VerifyOptions:
     check_progress: bool = True
     max_counterexamples: int = 3
     on_progress: ProgressCallback | None = None
+    max_memory: int | None = None        # bytes resident at most (None: no limit)
+    budget: Budget | None = None         # the run's limits; replaces time_limit and max_memory
 
     def __post_init__(self) -> None:
         if self.reduction not in REDUCTIONS:
@@ -75,19 +84,18 @@ class VerifyOptions:
 
 
 def verify(net: FlatNet, options: VerifyOptions | None = None) -> VerifyReport:
+    tracked = track_new(net)      # new(x) in the net's places (datanet.py), told back in net's
+    if tracked.changed:
+        return tracked.report(verify(tracked.net, options))
     opts = options or VerifyOptions()
     start = time.monotonic()
-    deadline = None if opts.time_limit is None else start + opts.time_limit
-
-    def remaining() -> float | None:
-        return None if deadline is None else max(0.0, deadline - time.monotonic())
-
+    budget = opts.budget if opts.budget is not None else Budget(opts.time_limit, opts.max_memory)
     nb = NetBits.of(net)
     notes: list[str] = []
-    inv = _invariants(net, opts, remaining(), notes) if opts.invariants else None
+    inv = _invariants(net, opts, budget, notes) if opts.invariants and not budget.stop else None
     safe_mask = to_mask(inv.safe_places) if inv else 0
     safe_by_invariants = inv is not None and inv.proves_safe(nb.nplaces)
-    full, comp, reduced = _searches(net, nb, opts, safe_mask, remaining, notes)
+    full, comp, reduced = _searches(net, nb, opts, safe_mask, budget, notes)
     deciding = reduced if reduced is not None else full
     if deciding is None:          # compositional only
         deciding = SearchResult("none", 0, 0, 0, False, None, 0.0, [], 0, 0, None)
@@ -112,13 +120,16 @@ def verify(net: FlatNet, options: VerifyOptions | None = None) -> VerifyReport:
     dead_transitions, unreachable = _dead_parts(net, full, comp, reduced, notes)
     graph = (full.graph if full is not None and full.complete else
              reduced.graph if reduced is not None and reduced.complete else None)
-    progress = _progress(net, nb, graph, comp, notes) if opts.check_progress else _Progress()
+    progress = (_progress(net, nb, graph, comp, notes, budget) if opts.check_progress
+                else _Progress())
 
     violated = safe is False or deadlock_free is False or progress.ok is False
     if violated:
         verdict = Verdict.VIOLATED
-    elif safe and deadlock_free and (progress.ok or not opts.check_progress):
+    elif safe and deadlock_free and progress.ok:
         verdict = Verdict.VERIFIED
+    elif safe and deadlock_free and not opts.check_progress:
+        verdict = Verdict.VERIFIED_WITHOUT_PROGRESS
     else:
         verdict = Verdict.INCONCLUSIVE
 
@@ -152,55 +163,86 @@ def verify(net: FlatNet, options: VerifyOptions | None = None) -> VerifyReport:
         unreachable_behaviours=unreachable,
         seconds=time.monotonic() - start,
         notes=tuple(notes),
+        stop=budget.stop,
+        progress_requested=opts.check_progress,
+        why_undecided=_why_undecided(budget, (("the full exploration", full),
+                                              ("the compositional check", comp),
+                                              ("the stubborn-set exploration", reduced))),
+        time_limit=budget.time_limit,
+        max_memory=budget.max_memory,
+        peak_memory=max(budget.peak, budget.resident()),
     )
 
 
-def _invariants(net: FlatNet, opts: VerifyOptions, budget: float | None,
+def _why_undecided(budget: Budget,
+                   searches: tuple[tuple[str, SearchResult | ComposeResult | None], ...],
+                   ) -> str | None:
+    """Why what is not decided is not: the limit that stopped the run, else the last search
+    that stopped early."""
+    if budget.stop is not None:
+        return budget.stop.message
+    why = None
+    for name, search in searches:
+        if search is not None and search.stopped:
+            why = f"{name}: {search.stopped}"
+    return why
+
+
+def _invariants(net: FlatNet, opts: VerifyOptions, budget: Budget,
                 notes: list[str]) -> InvariantResult:
     """Step 1: the minimal P-semiflows, within a third of the time left at most."""
+    left = budget.remaining()
     inv = place_invariants(net, opts.max_invariant_rows,
-                           opts.invariant_time if budget is None
-                           else min(budget / 3, opts.invariant_time))
+                           opts.invariant_time if left is None
+                           else min(left / 3, opts.invariant_time), budget)
     if inv.message:
         notes.append(f"place invariants: {inv.message}")
     return inv
 
 
 def _searches(net: FlatNet, nb: NetBits, opts: VerifyOptions, safe_mask: int,
-              remaining: Callable[[], float | None], notes: list[str],
+              budget: Budget, notes: list[str],
               ) -> tuple[SearchResult | None, ComposeResult | None, SearchResult | None]:
     """Step 2: the explorations ``options.reduction`` asks for (full, compositional,
     stubborn sets), each started only when the ones before left the question open."""
     full: SearchResult | None = None
     reduced: SearchResult | None = None
     comp: ComposeResult | None = None
-    if opts.reduction in ("auto", "off"):
+    if opts.reduction in ("auto", "off") and budget.stop is None:
         limit = opts.max_states
         if opts.reduction == "auto":
             limit = min(limit, opts.auto_full_states, max(10_000, opts.auto_full_words // nb.nwords))
-        full = explore_full(nb, limit, remaining(), keep_graph=opts.check_progress,
+        full = explore_full(nb, limit, keep_graph=opts.check_progress,
                             max_counterexamples=opts.max_counterexamples,
-                            progress=opts.on_progress)
+                            progress=opts.on_progress, budget=budget)
         if full.stopped and full.unsafe is None:
-            notes.append(f"full exploration: {full.stopped}")
+            notes += _stopped_note("full exploration", full.stopped, budget)
     # "auto": the full search ran out of states without finding a violation
     open_after_full = (opts.reduction == "auto" and full is not None and not full.complete
                        and full.unsafe is None and not full.deadlocks)
-    if opts.reduction == "compositional" or (
-            open_after_full and full is not None and "state limit" in (full.stopped or "")):
-        comp, comp_notes = _compositional(net, nb, opts, remaining())
+    if budget.stop is None and (opts.reduction == "compositional" or (
+            open_after_full and full is not None and "state limit" in (full.stopped or ""))):
+        comp, comp_notes = _compositional(net, nb, opts, budget)
         notes += comp_notes
-    if opts.reduction == "on" or (open_after_full and (
+    if budget.stop is None and (opts.reduction == "on" or (open_after_full and (
             comp is None or not comp.complete or comp.safe is False
-            or comp.deadlock_free is False)):
+            or comp.deadlock_free is False))):
         # stubborn sets: the verdict when nothing else gave one, else a counterexample
-        reduced = explore_reduced(nb, safe_mask, opts.max_states, remaining(),
+        reduced = explore_reduced(nb, safe_mask, opts.max_states, None,
                                   opts.max_counterexamples, opts.on_progress,
-                                  for_progress=opts.check_progress and comp is None)
+                                  for_progress=opts.check_progress and comp is None,
+                                  budget=budget)
         notes.append(f"stubborn-set exploration: {reduced.states} states")
         if reduced.stopped and reduced.unsafe is None:
-            notes.append(f"stubborn-set exploration: {reduced.stopped}")
+            notes += _stopped_note("stubborn-set exploration", reduced.stopped, budget)
     return full, comp, reduced
+
+
+def _stopped_note(name: str, stopped: str, budget: Budget) -> list[str]:
+    """The note for a search that stopped early; none for the limit that stopped the run
+    (the report says it)."""
+    limit = budget.stop is not None and stopped.startswith(budget.stop.message)
+    return [] if limit else [f"{name}: {stopped}"]
 
 
 def _safeness(unsafe_trace: Trace | None, deciding: SearchResult, full: SearchResult | None,
@@ -246,11 +288,14 @@ class _Progress:
 
 
 def _progress(net: FlatNet, nb: NetBits, graph: Graph | None, comp: ComposeResult | None,
-              notes: list[str]) -> _Progress:
+              notes: list[str], budget: Budget) -> _Progress:
     """Step 3, progress: on the reachability graph of a complete search, else from the
     compositional check."""
-    if graph is not None:
-        result = check_progress(nb, graph, subsystems_of(net))
+    if graph is not None and budget.stop is None:
+        result = check_progress(nb, graph, subsystems_of(net), budget)
+        if result.stopped:
+            notes.append(f"progress not decided: {result.stopped}; checked before: "
+                         + (", ".join(result.checked) or "none"))
         if result.skipped:
             notes.append("no ITERATION transition, progress not checked: "
                          + ", ".join(result.skipped))
@@ -261,11 +306,13 @@ def _progress(net: FlatNet, nb: NetBits, graph: Graph | None, comp: ComposeResul
             cycle=_steps(net, v.cycle),
             cycle_marking=marking_labels(net, nb.marking_of(v.cycle_marking)))
             for v in result.violations)
-        return _Progress(not result.violations, cxs, result.checked)
+        ok = False if result.violations else None if result.stopped else True
+        return _Progress(ok, cxs, result.checked)
     if comp is not None and comp.detail_complete:
         return _Progress(not comp.progress_lost, (), tuple(comp.progress_checked),
                          tuple(comp.progress_lost))
-    notes.append("progress not decided: the state space was not explored completely")
+    if budget.stop is None:         # else the report says which limit stopped the run
+        notes.append("progress not decided: the state space was not explored completely")
     return _Progress()
 
 
@@ -324,15 +371,15 @@ def _unreachable_behaviours(net: FlatNet, reached: Collection[tuple[str | None, 
     return tuple(out)
 
 
-def _compositional(net: FlatNet, nb: NetBits, opts: VerifyOptions, budget: float | None,
+def _compositional(net: FlatNet, nb: NetBits, opts: VerifyOptions, budget: Budget,
                    ) -> tuple[ComposeResult, list[str]]:
-    """The compositional check (``compose``) within ``budget`` seconds."""
-    deadline = None if budget is None else time.monotonic() + budget
-    res = compose_check(net, nb, opts.max_states, deadline, detail=opts.check_progress)
+    """The compositional check (``compose``) within the run's budget."""
+    res = compose_check(net, nb, opts.max_states, None, detail=opts.check_progress,
+                        budget=budget)
     notes = [f"compositional check: {res.components} page components, {res.states:,} states "
              f"built in all, the largest composition {res.largest:,} states"]
     if res.stopped:
-        notes.append(f"compositional check: {res.stopped}")
+        notes += _stopped_note("compositional check", res.stopped, budget)
     elif not res.detail_complete:
         notes.append("compositional check: progress and reachable behaviours not decided"
                      + ("" if opts.check_progress else " (--no-progress-check)"))

@@ -9,9 +9,9 @@ pattern and of the arrangements are monitors run along every firing sequence.
 What the verifier does not model: time and frequencies (every interleaving is there), values
 (conditions are free choices, so a row about which value is read or which switch holds is
 checked as "the expected run is one of the net's runs"), operation failures (run-time events;
-those rows are skipped with the reason). new(x) is a condition like the others for the
-verifier: the rows' new(x) column is checked along every firing sequence and fails (xfail:
-DESIGN.md section 5 wants new() evaluated, see test_mode_row_new)."""
+those rows are skipped with the reason). new(x) is tracked in the state (the net has places
+for it, rssm_dsl/verify/datanet.py): the rows' new(x) column is checked along every firing
+sequence (test_mode_row_new)."""
 
 from __future__ import annotations
 
@@ -135,11 +135,6 @@ def _new_monitor(space: StateSpace, ch: ChannelView) -> tuple[dict[int, bool], s
 
 
 @pytest.mark.parametrize("row", [r for r in MODE_ROWS if r.new is not None], ids=lambda r: r.id)
-@pytest.mark.xfail(strict=True, reason=(
-    "the verifier treats every condition as a free choice, new(x) included (docs/verify.md; "
-    "rssm_dsl/hpn/flatten.py): its state space has iterations whose data case says new(x) "
-    "although no receive ran, and the other way round. DESIGN.md section 5 says conditions "
-    "over new() are evaluated with the values tracked in the state."))
 def test_mode_row_new(work: Path, row: ModeRow) -> None:
     """new(x) as the consumer's next transition function sees it is true exactly when the
     receive operation ran since the previous transition function (a monitor along every
@@ -234,9 +229,11 @@ def test_arrangement_row(work: Path, row: ArrangementRow) -> None:
         first, second = row.order
         monitor = _order_monitor([set(done[first]), set(enter[second])], iterations)
         assert not space.bad_paths(monitor)
-    # places of a's page (where it waits: for its data, for its take)
+    # places of a's page (where it waits: for its data, for its take); not new(x)'s, which
+    # belong to no page of the subsystem alone
     inner_a = ({q for t in net.transitions if t.channel == a.id and t.subsystem == owner
-                for q in t.pre if q not in (a.full, a.empty)})
+                for q in t.pre if q not in (a.full, a.empty)
+                and net.places[q].subsystem == owner})
     b_while_a = any(space.any_marked(src, inner_a) for src, _, _ in space.firings(done["b"]))
     assert b_while_a == row.b_while_a_waits
 

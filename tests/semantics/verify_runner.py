@@ -1,7 +1,8 @@
 """The verifier's state space of a specification's flat net (the full breadth-first
-exploration of rssm_dsl.verify, with its reachability graph), and reachability questions over
-it: about markings, about firings (edges), and about firing sequences (a small monitor run
-along every path: the product of the graph with the monitor)."""
+exploration of rssm_dsl.verify, with its reachability graph, of the net the verifier explores:
+the flat net with new(x) in its places, rssm_dsl.verify.datanet), and reachability questions
+over it: about markings, about firings (edges), and about firing sequences (a small monitor
+run along every path: the product of the graph with the monitor)."""
 
 from __future__ import annotations
 
@@ -12,6 +13,7 @@ from pathlib import Path
 from rssm_dsl.hpn.flat import FlatNet
 from rssm_dsl.pipeline import Compilation
 from rssm_dsl.verify import VerifyOptions, VerifyReport, verify
+from rssm_dsl.verify.datanet import track_new
 from rssm_dsl.verify.netbits import NetBits
 from rssm_dsl.verify.statespace import explore_full
 from tests.semantics.netview import compile_spec, flat_net
@@ -66,7 +68,7 @@ class StateSpace:
 
 def state_space(path: Path, max_states: int = 2_000_000) -> StateSpace:
     comp = compile_spec(path)
-    net = flat_net(comp)
+    net = track_new(flat_net(comp)).net
     result = explore_full(NetBits.of(net), max_states=max_states)
     assert result.complete and result.graph is not None, result.stopped
     g = result.graph

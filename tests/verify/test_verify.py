@@ -90,7 +90,7 @@ def test_state_limit_falls_back_to_the_compositional_check() -> None:
     assert any("state limit" in n for n in r.notes)
     assert any("compositional check:" in n for n in r.notes)
     r = verify(pipeline_ring(8, "BB"), VerifyOptions(max_states=100))
-    assert r.progress_ok is None and r.verdict is Verdict.INCONCLUSIVE and r.exit_code == 2
+    assert r.progress_ok is None and r.verdict is Verdict.INCONCLUSIVE and r.exit_code == 3
 
 
 def test_reduction_on() -> None:
@@ -115,8 +115,12 @@ def test_found_violation_wins_over_limits() -> None:
 
 
 def test_progress_check_can_be_switched_off() -> None:
+    # safe and deadlock-free, but the loss of progress goes unchecked: not plain VERIFIED
     r = verify(send_send_deadlock(third=True), VerifyOptions(check_progress=False))
-    assert r.verdict is Verdict.VERIFIED and r.progress_ok is None
+    assert r.verdict is Verdict.VERIFIED_WITHOUT_PROGRESS and r.progress_ok is None
+    assert r.exit_code == 4 and r.headline().startswith("VERIFIED (progress not checked)")
+    assert r.properties()["progress"] == {"status": "not checked", "by": None,
+                                          "why": "--no-progress-check"}
 
 
 def test_json_is_complete_and_serialisable() -> None:
@@ -129,7 +133,8 @@ def test_json_is_complete_and_serialisable() -> None:
 
 
 def test_exit_codes() -> None:
-    assert [exit_code(v) for v in Verdict] == [0, 1, 2]
+    # 2 is left to usage errors and bad input
+    assert [exit_code(v) for v in Verdict] == [0, 1, 3, 4]
 
 
 def test_options_are_checked() -> None:

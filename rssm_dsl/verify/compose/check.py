@@ -34,6 +34,7 @@ from collections.abc import Callable, Hashable, Sequence
 from dataclasses import dataclass, field
 
 from rssm_dsl.hpn.flat import FlatNet, Role
+from rssm_dsl.verify.budget import Budget, LimitReached
 from rssm_dsl.verify.compose.cache import rename, subtree_key
 from rssm_dsl.verify.compose.components import local_lts
 from rssm_dsl.verify.compose.lts import (
@@ -51,10 +52,6 @@ from rssm_dsl.verify.compose.product import TooLarge, product
 from rssm_dsl.verify.compose.tree import SUBSYSTEM_KINDS, is_fusion, page_tree
 from rssm_dsl.verify.netbits import NetBits, bits
 from rssm_dsl.verify.progress import live_places
-
-
-class OutOfTime(Exception):
-    """The time limit was reached."""
 
 
 @dataclass
@@ -77,17 +74,24 @@ StepCallback = Callable[[str, int, int], None]     # (phase, components done, of
 
 def compose_check(net: FlatNet, nb: NetBits, max_states: int, deadline: float | None,
                   detail: bool = True, progress_subsystems: list[str] | None = None,
-                  on_step: StepCallback | None = None, reuse: bool = True) -> ComposeResult:
-    """``reuse``: rename the LTS of a subtree equal to one built before (``cache``)."""
+                  on_step: StepCallback | None = None, reuse: bool = True,
+                  budget: Budget | None = None) -> ComposeResult:
+    """``reuse``: rename the LTS of a subtree equal to one built before (``cache``).
+    ``deadline`` (a ``time.monotonic()`` instant) applies only without a ``budget``."""
     res = ComposeResult()
-    try:
-        run = _Composer(net, nb, max_states, deadline, on_step, res)
-        if run.verdict(reuse) and detail:
-            run.details(progress_subsystems)
-    except TooLarge as e:
-        res.stopped = str(e)
-    except OutOfTime:
-        res.stopped = "time limit reached"
+    if budget is None:
+        budget = Budget(None if deadline is None else max(0.0, deadline - time.monotonic()))
+    with budget.running("the compositional check"):
+        try:
+            run = _Composer(net, nb, max_states, budget, on_step, res)
+            if run.verdict(reuse) and detail:
+                run.details(progress_subsystems)
+        except TooLarge as e:
+            res.stopped = str(e)
+        except LimitReached as e:
+            res.stopped = e.stop.message
+        except MemoryError:
+            res.stopped = budget.out_of_memory().message
     return res
 
 
@@ -95,9 +99,9 @@ class _Composer:
     """One compositional check: the page tree of the net, the LTS of every subtree (step 1,
     ``verdict``), then per subsystem the whole net again (step 2, ``details``)."""
 
-    def __init__(self, net: FlatNet, nb: NetBits, max_states: int, deadline: float | None,
+    def __init__(self, net: FlatNet, nb: NetBits, max_states: int, budget: Budget,
                  on_step: StepCallback | None, res: ComposeResult) -> None:
-        self.net, self.nb, self.max_states, self.deadline = net, nb, max_states, deadline
+        self.net, self.nb, self.max_states, self.budget = net, nb, max_states, budget
         self.on_step, self.res = on_step, res
         self.nodes = nodes = page_tree(net, nb)
         res.components = sum(1 for n in nodes if n.own is not None)
@@ -170,8 +174,10 @@ class _Composer:
         subsystem to the root (every other subtree as built in step 1), the subsystem's
         ITERATION transitions visible and its places observed."""
         wanted = set(progress_subsystems) if progress_subsystems is not None else None
-        for k, n in enumerate(self.nodes):
-            if n.kind in SUBSYSTEM_KINDS:
+        subsystems = [k for k, n in enumerate(self.nodes) if n.kind in SUBSYSTEM_KINDS]
+        for i, k in enumerate(subsystems):
+            with self.budget.running(f"the compositional check of subsystem "
+                                     f"{self.nodes[k].owner}, {i + 1} of {len(subsystems)}"):
                 self.inspect(k, wanted)
         self.res.detail_complete = True
 
@@ -213,8 +219,7 @@ class _Composer:
 
     # ------------------------------------------------------------------ building blocks
     def tick(self, phase: str) -> None:
-        if self.deadline is not None and time.monotonic() > self.deadline:
-            raise OutOfTime
+        self.budget.check(self.res.states)
         self.done += 1
         if self.on_step is not None:
             self.on_step(phase, self.done, len(self.nodes))
@@ -225,16 +230,17 @@ class _Composer:
         return lts
 
     def minimized(self, lts: Lts, groups: Sequence[frozenset[int]] = ()) -> Lts:
-        return minimize(self.counted(lts), groups)
+        return minimize(self.counted(lts), groups, self.budget)
 
     def compose(self, x: Lts, y: Lts, hidden: frozenset[int] | set[int],
                 groups: Sequence[frozenset[int]] = ()) -> Lts:
-        return self.minimized(product(x, y, frozenset(hidden), self.max_states), groups)
+        return self.minimized(product(x, y, frozenset(hidden), self.max_states, self.budget),
+                              groups)
 
     def product(self, x: Lts, y: Lts, hidden: frozenset[int] | set[int]) -> Lts:
         """Unreduced (the whole net with nothing visible: its deadlocks and flags are read
         off the product directly, a reduction would be wasted)."""
-        return self.counted(product(x, y, frozenset(hidden), self.max_states))
+        return self.counted(product(x, y, frozenset(hidden), self.max_states, self.budget))
 
     def leaves_subtree(self, t: int, k: int) -> bool:
         node = self.nodes[k]
@@ -247,7 +253,8 @@ class _Composer:
             return None
         self.tick("components")
         return self.minimized(local_lts(self.nb, own, self.shared | keep, self.max_states,
-                                        observe, self.own_control[k], self.entries[k]))
+                                        observe, self.own_control[k], self.entries[k],
+                                        self.budget))
 
     def build(self, k: int, keep: frozenset[int] = frozenset(), observe: tuple[int, ...] = (),
               child: tuple[int, Lts] | None = None) -> Lts:

@@ -16,6 +16,7 @@ from __future__ import annotations
 
 from dataclasses import dataclass
 
+from rssm_dsl.verify.budget import Budget
 from rssm_dsl.verify.compose.lts import BUSY, FINAL, OBSERVED, TAU, UNSAFE, VIOLATED, Edges, Lts
 from rssm_dsl.verify.compose.product import TooLarge
 from rssm_dsl.verify.netbits import NetBits, bits
@@ -42,7 +43,7 @@ def _touching(nb: NetBits, mask: int) -> tuple[int, ...]:
 
 def local_lts(nb: NetBits, comp: Component, visible: frozenset[int], max_states: int,
               observe: tuple[int, ...] = (), control: int = 0,
-              entries: frozenset[int] = frozenset()) -> Lts:
+              entries: frozenset[int] = frozenset(), budget: Budget | None = None) -> Lts:
     """The component's own token game; transitions not in ``visible`` are silent.
 
     A state marking some place of ``observe[i]`` has flag ``OBSERVED << i``, one marking a
@@ -65,6 +66,8 @@ def local_lts(nb: NetBits, comp: Component, visible: frozenset[int], max_states:
     sinks = {UNSAFE: -1, VIOLATED: -1}
     i = 0
     while i < len(markings):
+        if budget is not None and i & 0xFFF == 0:
+            budget.check(len(markings))
         m = markings[i]
         i += 1
         if m < 0:

@@ -30,10 +30,20 @@ compositional check relies on. The algorithm:
 
 from __future__ import annotations
 
-from collections.abc import Sequence
+from collections.abc import Callable, Sequence
 from dataclasses import dataclass
 
+from rssm_dsl.verify.budget import Budget
 from rssm_dsl.verify.scc import components
+
+Check = Callable[[], object]
+
+
+def _no_check() -> None:
+    return None
+
+
+_EVERY = 0xFFFF         # the budget is checked every 65,536 states of a pass over the LTS
 
 TAU = -1
 FINAL = 1
@@ -67,18 +77,23 @@ class Lts:
         return Lts(self.init, self.flags, out, self.alphabet - actions)
 
 
-def _silent_components(lts: Lts) -> tuple[list[int], int]:
+def _silent_components(lts: Lts, check: Check) -> tuple[list[int], int]:
     """The strongly connected components of the silent edges between states with equal
     flags, numbered so that every silent edge leaving a component goes to a lower number."""
     flags = lts.flags
-    return components([[w for a, w in edges if a == TAU and w != v and flags[w] == flags[v]]
-                       for v, edges in enumerate(lts.out)])
+    succ = []
+    for v, edges in enumerate(lts.out):
+        if v & _EVERY == 0:
+            check()
+        succ.append([w for a, w in edges if a == TAU and w != v and flags[w] == flags[v]])
+    return components(succ, check)
 
 
 UNBOUNDED = -1
 
 
-def interface_counts(edges_of: list[Edges], group: frozenset[int]) -> list[int]:
+def interface_counts(edges_of: list[Edges], group: frozenset[int],
+                     check: Check = _no_check) -> list[int]:
     """Per state, the largest number of ``group`` actions on a path that uses only silent
     steps and ``group`` actions (``UNBOUNDED`` if such a path can repeat one forever).
 
@@ -87,12 +102,14 @@ def interface_counts(edges_of: list[Edges], group: frozenset[int]) -> list[int]:
     next agent, it is the number of messages the chain can still deliver without input, the
     counter that plain refinement would otherwise discover one round per value."""
     succ = [[d for a, d in edges if a == TAU or a in group] for edges in edges_of]
-    comp, nc = components(succ)
+    comp, nc = components(succ, check)
     best = [0] * nc
     members: list[list[int]] = [[] for _ in range(nc)]
     for c, k in enumerate(comp):
         members[k].append(c)
     for k in range(nc):                 # successors first
+        if k & _EVERY == 0:
+            check()
         value = 0
         for c in members[k]:
             for a, d in edges_of[c]:
@@ -115,17 +132,22 @@ def interface_counts(edges_of: list[Edges], group: frozenset[int]) -> list[int]:
     return [best[k] for k in comp]
 
 
-def minimize(lts: Lts, groups: Sequence[frozenset[int]] = ()) -> Lts:
+def minimize(lts: Lts, groups: Sequence[frozenset[int]] = (),
+             budget: Budget | None = None) -> Lts:
     """The quotient of ``lts`` (reachable part) modulo divergence-preserving branching
     bisimilarity, flags respected. ``groups`` (visible actions towards one neighbour each)
-    only speed it up: their ``interface_counts`` seed the partition."""
-    comp, nc = _silent_components(lts)
+    only speed it up: their ``interface_counts`` seed the partition. The budget is checked
+    every 65,536 states of every pass."""
+    check: Check = budget.check if budget is not None else _no_check
+    comp, nc = _silent_components(lts, check)
     # collapsed graph, components numbered successors-first (silent edges go to lower ids)
     cflags = [0] * nc
     div = [False] * nc
     size = [0] * nc
     cout: list[set[tuple[int, int]]] = [set() for _ in range(nc)]
     for s, edges in enumerate(lts.out):
+        if s & _EVERY == 0:
+            check()
         c = comp[s]
         cflags[c] = lts.flags[s]
         size[c] += 1
@@ -143,14 +165,15 @@ def minimize(lts: Lts, groups: Sequence[frozenset[int]] = ()) -> Lts:
     seeds = cflags
     for group in groups:
         if group & lts.alphabet:
-            counts = interface_counts(edges_of, group & lts.alphabet)
+            counts = interface_counts(edges_of, group & lts.alphabet, check)
             keys: dict[tuple[int, int], int] = {}
             seeds = [keys.setdefault((f, v), len(keys)) for f, v in zip(seeds, counts, strict=True)]
-    block = refine(seeds, div, edges_of)
-    return _quotient(lts, comp, block, cflags, div, edges_of)
+    block = refine(seeds, div, edges_of, check)
+    return _quotient(lts, comp, block, cflags, div, edges_of, check)
 
 
-def refine(flags: list[int], div: list[bool], edges_of: list[Edges]) -> list[int]:
+def refine(flags: list[int], div: list[bool], edges_of: list[Edges],
+           check: Check = _no_check) -> list[int]:
     """The block of every state of a graph free of silent cycles whose silent edges go to
     lower-numbered states: the coarsest partition that separates flags (any int per state
     that bisimilar states share) and divergence and in which all states of a block have the
@@ -166,7 +189,7 @@ def refine(flags: list[int], div: list[bool], edges_of: list[Edges]) -> list[int
     largest group. Counting structures (a chain of agents with messages in flight) need as
     many rounds as they have states; each round costs only the region that changed."""
     n = len(flags)
-    visible, silent, preds, silent_preds = _split_edges(edges_of)
+    visible, silent, preds, silent_preds = _split_edges(edges_of, check)
     keys: dict[tuple[int, bool], int] = {}
     block = [keys.setdefault((flags[c], div[c]), len(keys)) for c in range(n)]
     count = [0] * len(keys)
@@ -177,15 +200,17 @@ def refine(flags: list[int], div: list[bool], edges_of: list[Edges]) -> list[int
     interned: dict[frozenset[int], frozenset[int]] = {}
     dirty: list[int] = list(range(n))
     while dirty:
-        _signatures(dirty, block, visible, silent, sigs, interned)
+        check()
+        _signatures(dirty, block, visible, silent, sigs, interned, check)
         moved = _split(dirty, block, sigs, count, common)
         if not moved:
             break
+        check()
         dirty = _affected(moved, block, preds, silent_preds)
     return block
 
 
-def _split_edges(edges_of: list[Edges]) -> tuple[list[list[tuple[int, int]]], list[list[int]],
+def _split_edges(edges_of: list[Edges], check: Check = _no_check) -> tuple[list[list[tuple[int, int]]], list[list[int]],
                                                   list[list[int]], list[list[int]]]:
     """Per state: its visible edges (the action coded for ``refine``'s signatures as
     ``(action + 1) << 32``, and the target), its silent successors, its predecessors and
@@ -197,6 +222,8 @@ def _split_edges(edges_of: list[Edges]) -> tuple[list[list[tuple[int, int]]], li
     preds: list[list[int]] = [[] for _ in range(n)]
     silent_preds: list[list[int]] = [[] for _ in range(n)]
     for c in range(n):
+        if c & _EVERY == 0:
+            check()
         for a, d in edges_of[c]:
             preds[d].append(c)
             if a == TAU:
@@ -209,10 +236,12 @@ def _split_edges(edges_of: list[Edges]) -> tuple[list[list[tuple[int, int]]], li
 
 def _signatures(dirty: list[int], block: list[int], visible: list[list[tuple[int, int]]],
                 silent: list[list[int]], sigs: list[frozenset[int]],
-                interned: dict[frozenset[int], frozenset[int]]) -> None:
+                interned: dict[frozenset[int], frozenset[int]], check: Check) -> None:
     """Recompute the signatures of the ``dirty`` states (in increasing order, so that their
     inert silent successors come first)."""
-    for c in dirty:
+    for k, c in enumerate(dirty):
+        if k & _EVERY == 0:
+            check()
         bc = block[c]
         sig = {code | block[d] for code, d in visible[c]}
         inherited: frozenset[int] | None = None
@@ -288,7 +317,7 @@ def _affected(moved: list[int], block: list[int], preds: list[list[int]],
 
 
 def _quotient(lts: Lts, comp: list[int], block: list[int], cflags: list[int],
-              div: list[bool], edges_of: list[Edges]) -> Lts:
+              div: list[bool], edges_of: list[Edges], check: Check = _no_check) -> Lts:
     """One state per block reachable from the initial one, renumbered breadth-first."""
     ids: dict[int, int] = {}
     for b in block:
@@ -299,6 +328,8 @@ def _quotient(lts: Lts, comp: list[int], block: list[int], cflags: list[int],
     qflags = [0] * nblocks
     qdiv = [False] * nblocks
     for c in range(len(block)):
+        if c & _EVERY == 0:
+            check()
         b = block[c]
         qflags[b] = cflags[c]
         qdiv[b] = div[c]

@@ -10,6 +10,7 @@ become silent in the result (all their participants are inside it).
 
 from __future__ import annotations
 
+from rssm_dsl.verify.budget import Budget
 from rssm_dsl.verify.compose.lts import FINAL, SINK, TAU, Edges, Lts
 
 
@@ -17,8 +18,10 @@ class TooLarge(Exception):
     """The product exceeded the state budget."""
 
 
-def product(a: Lts, b: Lts, hidden: frozenset[int], max_states: int) -> Lts:
-    """The reachable part of ``a || b`` with ``hidden`` made silent."""
+def product(a: Lts, b: Lts, hidden: frozenset[int], max_states: int,
+            budget: Budget | None = None) -> Lts:
+    """The reachable part of ``a || b`` with ``hidden`` made silent (the budget checked
+    every 4,096 states)."""
     sync = a.alphabet & b.alphabet
     nb = b.size
     # b's synchronising edges indexed by state and action
@@ -48,6 +51,8 @@ def product(a: Lts, b: Lts, hidden: frozenset[int], max_states: int) -> Lts:
     aflags, bflags, aout = a.flags, b.flags, a.out
     i = 0
     while i < len(pairs):
+        if budget is not None and i & 0xFFF == 0:
+            budget.check(len(pairs))
         key = pairs[i]
         i += 1
         ia, ib = divmod(key, nb)
