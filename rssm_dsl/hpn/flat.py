@@ -93,6 +93,9 @@ class NewSites:
     receives: tuple[tuple[int, str, int], ...] = ()       # (transition, subsystem, k)
     forks: tuple[tuple[int, str], ...] = ()               # (transition, subsystem)
     joins: tuple[tuple[int, str], ...] = ()               # (transition, subsystem)
+    # inputs whose new(x) the verifier leaves a free choice (fed by a slice's environment,
+    # rssm_dsl/verify/slicing.py): (subsystem, k)
+    free: tuple[tuple[str, int], ...] = ()
 
 
 @dataclass(frozen=True)

@@ -167,7 +167,8 @@ class _Sub:
     receives: dict[int, int] = field(default_factory=dict)            # RECEIVED -> k
     forks: set[int] = field(default_factory=set)
     consistent: bool = True
-    flags: list[tuple[int, int]] = field(default_factory=list)   # per k: (new, not new) place
+    flags: dict[int, tuple[int, int]] = field(default_factory=dict)  # k: (new, not new) place
+    tracked: tuple[int, ...] = ()     # the inputs k tracked (the others: free, NewSites.free)
 
     @property
     def n(self) -> int:
@@ -195,8 +196,11 @@ def _subsystems(net: FlatNet) -> list[_Sub]:
     for t, sub in sites.forks:
         if sub in subs:
             subs[sub].forks.add(t)
+    free = set(sites.free)
+    for s in subs.values():
+        s.tracked = tuple(k for k in range(s.n) if (s.name, k) not in free)
     return [s for s in subs.values()
-            if s.consistent and s.n <= MAX_INPUTS and s.forks
+            if s.consistent and 0 < len(s.tracked) <= MAX_INPUTS and s.forks
             and all(k < s.n for k in s.receives.values()) and _cases_start_at_forks(net, s)]
 
 
@@ -246,18 +250,21 @@ class _Builder:
                      and pg.owner == s.name), None)
         prefix = page.id.partition("[")[2].removesuffix("]") if page else s.name
         span = self.src.transitions[min(s.forks)].span
-        for k, x in enumerate(s.buffers):
+        for k in s.tracked:
+            x = s.buffers[k]
             base, words = f"p[{prefix},{k + 1}]", f"new({x}) of {s.name}"
             yes, no = [self.add_place(FlatPlace(
                 0, derived(base, which), label, span, (derived(base, which),), channel=words,
                 page=page.id if page else None), None)
                 for which, label in ((1, words), (2, f"not {words}"))]
             self.initial.add(no)
-            s.flags.append((yes, no))
+            s.flags[k] = (yes, no)
 
     def receives(self, s: _Sub) -> None:
         """RECEIVED sets new(x_k): from "not new", or keeping "new"."""
         for t, k in s.receives.items():
+            if k not in s.flags:
+                continue                # new(x_k) left free
             tr = self.src.transitions[t]
             yes, no = s.flags[k]
             self.variants[t] = [(derived(tr.name, 1), (*tr.pre, no), (*tr.post, yes)),
@@ -266,7 +273,8 @@ class _Builder:
     def forks(self, s: _Sub) -> None:
         """The fork of P^f takes new(x) of a combination and clears it; each partial
         function's start place is split by combination, its data cases start from theirs."""
-        src, n = self.src, s.n
+        src, tracked = self.src, s.tracked
+        n = len(tracked)
         split: dict[int, list[int]] = {}       # start place -> per varpi - 1: its place
         for t, new in s.cases.items():
             tr = src.transitions[t]
@@ -276,14 +284,15 @@ class _Builder:
                 split[p] = [p] + [self.add_place(dataclasses.replace(
                     like, name=derived(like.name, v), origin=(derived(like.name, v),)), p)
                     for v in range(2, (1 << n) + 1)]
-            self.variants[t] = [(tr.name, (split[p][varpi_of(new) - 1],), tr.post)]
-        clear = tuple(no for _, no in s.flags)
+            varpi = varpi_of(tuple(new[k] for k in tracked))
+            self.variants[t] = [(tr.name, (split[p][varpi - 1],), tr.post)]
+        clear = tuple(s.flags[k][1] for k in tracked)
         for f in s.forks:
             tr = src.transitions[f]
             rest = tuple(q for q in tr.post if q not in split)
             self.variants[f] = [
                 (derived(tr.name, varpi),
-                 (*tr.pre, *(s.flags[k][0 if c[k] else 1] for k in range(n))),
+                 (*tr.pre, *(s.flags[k][0 if c[i] else 1] for i, k in enumerate(tracked))),
                  (*rest, *(split[q][varpi - 1] for q in tr.post if q in split), *clear))
                 for varpi in range(1, (1 << n) + 1) for c in [combination(varpi, n)]]
 

@@ -36,6 +36,7 @@ a final marking is the system having finished, not an error.
 
 from __future__ import annotations
 
+import dataclasses
 import time
 from collections.abc import Collection
 from dataclasses import dataclass
@@ -43,6 +44,7 @@ from dataclasses import dataclass
 from rssm_dsl.hpn.flat import FlatNet, FlatTransition
 from rssm_dsl.verify.budget import Budget
 from rssm_dsl.verify.compose.check import ComposeResult, compose_check
+from rssm_dsl.verify.cover import one_token_semiflows
 from rssm_dsl.verify.datanet import track_new
 from rssm_dsl.verify.invariants import DEFAULT_MAX_ROWS, InvariantResult, place_invariants
 from rssm_dsl.verify.netbits import NetBits, bits, to_mask
@@ -54,10 +56,13 @@ from rssm_dsl.verify.report import (
     VerifyReport,
     marking_labels,
 )
+from rssm_dsl.verify.sliced import verify_sliced
+from rssm_dsl.verify.slicing import blocking_groups
 from rssm_dsl.verify.statespace import Graph, ProgressCallback, SearchResult, Trace, explore_full
 from rssm_dsl.verify.stubborn import explore_reduced
 
 REDUCTIONS = ("auto", "on", "off", "compositional")
+SMALL_NET = 400        # places: below, the minimal semiflows are always enumerated
 
 
 @dataclass(frozen=True)
@@ -76,6 +81,8 @@ class VerifyOptions:
     on_progress: ProgressCallback | None = None
     max_memory: int | None = None        # bytes resident at most (None: no limit)
     budget: Budget | None = None         # the run's limits; replaces time_limit and max_memory
+    slicing: bool = True                 # "auto": blocking groups verified one by one (sliced)
+    slice_after_states: int = 50_000     # ... when the whole net has more states than this
 
     def __post_init__(self) -> None:
         if self.reduction not in REDUCTIONS:
@@ -84,9 +91,25 @@ class VerifyOptions:
 
 
 def verify(net: FlatNet, options: VerifyOptions | None = None) -> VerifyReport:
+    opts = options or VerifyOptions()
+    if opts.slicing and opts.reduction == "auto":
+        groups = blocking_groups(net)
+        if len(groups) > 1:
+            budget = (opts.budget if opts.budget is not None
+                      else Budget(opts.time_limit, opts.max_memory))
+            # a small net is explored whole (its dead transitions and unreachable behaviours
+            # come with it); a larger one group by group
+            whole = verify(net, dataclasses.replace(opts, slicing=False, budget=budget,
+                                                     reduction="off",
+                                                     max_states=opts.slice_after_states))
+            if whole.complete or whole.verdict is Verdict.VIOLATED or budget.stop is not None:
+                return whole
+            inner = dataclasses.replace(opts, slicing=False, budget=budget, reduction="on")
+            return verify_sliced(net, groups, inner, budget,
+                                 lambda n, o: verify(n, o))  # type: ignore[arg-type]
     tracked = track_new(net)      # new(x) in the net's places (datanet.py), told back in net's
     if tracked.changed:
-        return tracked.report(verify(tracked.net, options))
+        return tracked.report(verify(tracked.net, opts))
     opts = options or VerifyOptions()
     start = time.monotonic()
     budget = opts.budget if opts.budget is not None else Budget(opts.time_limit, opts.max_memory)
@@ -190,14 +213,35 @@ def _why_undecided(budget: Budget,
 
 def _invariants(net: FlatNet, opts: VerifyOptions, budget: Budget,
                 notes: list[str]) -> InvariantResult:
-    """Step 1: the minimal P-semiflows, within a third of the time left at most."""
+    """Step 1: one-token semiflows found by search (``cover``: fast, one per place), then the
+    minimal P-semiflows within a third of the time left at most. On a large net that the
+    search proves safe the enumeration is skipped (it can take its whole share and more)."""
+    start = time.monotonic()
+    found = one_token_semiflows(net, range(len(net.places)), lambda: budget.poll() is not None)
+    covered = {p for f in found for p in f.support}
+    if len(covered) == len(net.places) and len(net.places) > SMALL_NET:
+        proof = {p: k for k, f in enumerate(found) for p in f.support}
+        return InvariantResult(tuple(found), False,
+                               "minimal semiflows not enumerated: one-token semiflows found "
+                               "by search prove every place safe", time.monotonic() - start,
+                               proof=dict(sorted(proof.items())))
     left = budget.remaining()
     inv = place_invariants(net, opts.max_invariant_rows,
                            opts.invariant_time if left is None
                            else min(left / 3, opts.invariant_time), budget)
     if inv.message:
         notes.append(f"place invariants: {inv.message}")
-    return inv
+    extra = [f for f in found if not f.support <= inv.safe_places]
+    if not extra:
+        return inv
+    proof = dict(inv.proof)
+    for k, f in enumerate(extra, start=len(inv.invariants)):
+        for p in f.support:
+            proof.setdefault(p, k)
+    notes.append(f"place invariants: {len(extra)} one-token semiflow(s) found by search "
+                 f"prove {len(proof) - len(inv.proof)} more place(s) safe")
+    return InvariantResult((*inv.invariants, *extra), inv.complete, inv.message,
+                           time.monotonic() - start, proof=proof)
 
 
 def _searches(net: FlatNet, nb: NetBits, opts: VerifyOptions, safe_mask: int,

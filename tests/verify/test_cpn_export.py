@@ -490,4 +490,5 @@ def test_verify_cross_check_runs_cpncheck_on_small_nets() -> None:
     r = rssmc("verify", "--cross-check", "--no-progress-check", "--no-invariants",
               EXAMPLES / "lwr4_circle.rssm")
     line = next(x for x in r.stdout.splitlines() if "cpncheck" in x)
-    assert "not run (too large" in line, r.stdout
+    # too large for cpncheck, and verified group by group (sliced): not compared
+    assert "not run (" in line, r.stdout

@@ -1,0 +1,309 @@
+"""Slices of the flat net at the channels nobody waits on.
+
+A channel is *free* when neither of its ends can wait on it: both the send and the receive are
+non-blocking. Structurally: every transition of either end that takes the channel's ``full``
+or ``empty`` place has a sibling of the same subsystem taking the other one from the same
+places (a non-blocking receive takes new data or finds none; a non-blocking send starts on an
+empty buffer or overwrites a full one). A blocking end has a step with no such sibling (it
+waits for ``full``, or for ``empty`` after its send).
+
+The subsystems joined by channels that are not free form *blocking groups*
+(:func:`blocking_groups`): the control subsystems of agents talking over blocking channels
+form one group; an effector, a receptor or a device talking non-blocking to everyone is a
+group of its own. A group never waits on anything outside it, and nothing outside it waits on
+it.
+
+The slice of a group (:func:`slice_net`) keeps the group's transitions and places and the
+system's own plumbing, and replaces everything else by an *environment* for each free
+channel crossing the border: ``env-write`` (``empty -> full``) where the producer is outside,
+``env-take`` (``full -> empty``) where the consumer is. The environment may fire them at any
+time or never, so the slice can do everything the group can do in the whole net, whatever the
+rest is doing (an outside producer between its two send steps is simply not written yet).
+Hence, for the group's places and for what it can reach:
+
+* the slice is safe if the group is safe in the whole net (and every place lies in some slice);
+* a reachable deadlock of the whole net is a reachable deadlock of every slice (in it, no
+  outside end is between two steps, and the environment's moves enable nothing of the group),
+  so one deadlock-free slice makes the whole net deadlock-free;
+* the group's subsystems never wait on the environment, and the data cases a fresh or a stale
+  value selects all end in the same place, so the group's own moves in a slice run can be
+  replayed in the whole net with the outside standing still (:func:`replay_group`): every
+  violation found in a slice is lifted to a firing sequence of the whole net and checked
+  there before it is reported.
+"""
+
+from __future__ import annotations
+
+import dataclasses
+from collections.abc import Sequence
+from dataclasses import dataclass
+
+from rssm_dsl.hpn.flat import FlatNet, FlatPlace, FlatTransition, NewSites, Role
+
+
+@dataclass(frozen=True)
+class Channel:
+    name: str
+    full: int
+    empty: int
+    producer: str | None
+    consumer: str | None
+    free: bool
+
+
+def channels(net: FlatNet) -> list[Channel]:
+    """The net's channels (their fused ``full``/``empty`` places, their ends) and whether
+    they are free (the module docstring)."""
+    places: dict[str, list[int]] = {}
+    for p in net.places:
+        if p.channel is not None and p.subsystem is None:
+            places.setdefault(p.channel, []).append(p.index)
+    out = []
+    for name, ps in places.items():
+        users = [t for t in net.transitions if t.channel == name and t.subsystem is not None]
+        senders = {t.subsystem for t in users if t.role is Role.SEND}
+        receivers = {t.subsystem for t in users if t.role is Role.RECEIVE}
+        filled = {p for t in users if t.role is Role.SEND for p in t.post
+                  if p in ps and p not in t.pre}
+        if len(ps) != 2 or len(filled) != 1 or len(senders) != 1 or len(receivers) != 1:
+            continue            # not a channel's full/empty pair (e.g. new(x) of a subsystem)
+        full = filled.pop()
+        empty = ps[0] if ps[1] == full else ps[1]
+        producer, consumer = senders.pop(), receivers.pop()
+        free = _never_waits(net, producer, full, empty) and _never_waits(net, consumer, full,
+                                                                         empty)
+        out.append(Channel(name, full, empty, producer, consumer, free))
+    return out
+
+
+def _never_waits(net: FlatNet, subsystem: str | None, full: int, empty: int) -> bool:
+    pair = {full, empty}
+    own = [t for t in net.transitions if t.subsystem == subsystem]
+    pres = {frozenset(t.pre) for t in own}
+    for t in own:
+        took = pair.intersection(t.pre)
+        if not took:
+            continue
+        if len(took) == 2:
+            return False
+        (x,) = took
+        other = empty if x == full else full
+        if frozenset(t.pre) - {x} | {other} not in pres:
+            return False
+    return True
+
+
+def blocking_groups(net: FlatNet) -> list[tuple[str, ...]]:
+    """The net's subsystems grouped by the channels that are not free (largest first)."""
+    subs = list(net.subsystems) or sorted({t.subsystem for t in net.transitions
+                                           if t.subsystem is not None})
+    parent = {s: s for s in subs}
+
+    def find(s: str) -> str:
+        while parent[s] != s:
+            parent[s] = parent[parent[s]]
+            s = parent[s]
+        return s
+
+    for c in channels(net):
+        if not c.free and c.producer in parent and c.consumer in parent:
+            parent[find(c.producer)] = find(c.consumer)
+    groups: dict[str, list[str]] = {}
+    for s in subs:
+        groups.setdefault(find(s), []).append(s)
+    return sorted((tuple(g) for g in groups.values()), key=lambda g: (-len(g), g))
+
+
+@dataclass(frozen=True)
+class Slice:
+    """The slice of ``whole`` for the group ``keep``: ``net``, and per transition of ``net``
+    the whole net's it is (-1: an environment move)."""
+
+    whole: FlatNet
+    net: FlatNet
+    keep: frozenset[str]
+    transition_of: tuple[int, ...]
+    place_of: tuple[int, ...]
+
+    def whole_steps(self, steps: Sequence[FlatTransition]) -> list[int]:
+        """The group's moves of a firing sequence of the slice, as the whole net's
+        transitions (the environment's moves dropped)."""
+        return [self.transition_of[t.index] for t in steps if self.transition_of[t.index] >= 0]
+
+
+def slice_net(net: FlatNet, keep: Sequence[str]) -> Slice:
+    """The slice of ``net`` for the group ``keep`` (the module docstring)."""
+    group = frozenset(keep)
+    gone = {p.index for p in net.places if p.subsystem is not None and p.subsystem not in group}
+    kept_t: list[tuple[FlatTransition, tuple[int, ...], tuple[int, ...]]] = []
+    for t in net.transitions:
+        if t.subsystem is not None and t.subsystem not in group:
+            continue
+        pre = tuple(p for p in t.pre if p not in gone)
+        post = tuple(p for p in t.post if p not in gone)
+        if t.pre and not pre:
+            continue            # plumbing waiting only for what is gone
+        kept_t.append((t, pre, post))
+    used = {p for _, pre, post in kept_t for p in (*pre, *post)}
+    border = [c for c in channels(net)
+              if (c.producer in group) != (c.consumer in group)]
+    used.update(p for c in border for p in (c.full, c.empty))
+    place_of = tuple(sorted(used))
+    new_index = {p: i for i, p in enumerate(place_of)}
+    places = [dataclasses.replace(net.places[p], index=i) for i, p in enumerate(place_of)]
+    transitions: list[FlatTransition] = []
+    transition_of: list[int] = []
+    t_index: dict[int, int] = {}
+    for t, pre, post in kept_t:
+        t_index[t.index] = len(transitions)
+        transitions.append(dataclasses.replace(
+            t, index=len(transitions), pre=tuple(sorted(new_index[p] for p in pre)),
+            post=tuple(sorted(new_index[p] for p in post))))
+        transition_of.append(t.index)
+    for c in border:
+        transitions.append(_environment(net, c, c.producer not in group, len(transitions),
+                                        new_index[c.full], new_index[c.empty]))
+        transition_of.append(-1)
+    sites = net.new_sites
+    # new(x) of an input the environment feeds is a free choice: the environment may have
+    # written any number of times since the last use, or not at all
+    from_env = {c.name for c in border if c.consumer in group}
+    free = {(sub, k) for t, sub, k in sites.receives
+            if sub in group and net.transitions[t].channel in from_env}
+    new_sites = NewSites(
+        inputs=tuple(x for x in sites.inputs if x[0] in group),
+        receives=tuple((t_index[t], s, k) for t, s, k in sites.receives if t in t_index),
+        forks=tuple((t_index[t], s) for t, s in sites.forks if t in t_index),
+        joins=tuple((t_index[t], s) for t, s in sites.joins if t in t_index),
+        free=tuple(sorted(free | {x for x in sites.free if x[0] in group})))
+    sliced = FlatNet(
+        system=net.system, places=tuple(places), transitions=tuple(transitions),
+        initial=frozenset(new_index[p] for p in net.initial if p in new_index),
+        final=frozenset(new_index[p] for p in net.final if p in new_index),
+        subsystems=tuple(s for s in net.subsystems if s in group),
+        pages=net.pages,
+        conditions=tuple(dataclasses.replace(c, transition=t_index[c.transition])
+                         for c in net.conditions if c.transition in t_index),
+        new_sites=new_sites)
+    return Slice(net, sliced, group, tuple(transition_of), place_of)
+
+
+def _environment(net: FlatNet, c: Channel, writes: bool, index: int, full: int,
+                 empty: int) -> FlatTransition:
+    place: FlatPlace = net.places[c.full]
+    outside = c.producer if writes else c.consumer
+    verb = "sends" if writes else "takes"
+    return FlatTransition(
+        index=index, name=f"env[{c.name},{'write' if writes else 'take'}]",
+        label=f"{outside} {verb} (environment of the slice, channel {c.name})",
+        span=place.span, pre=(empty,) if writes else (full,),
+        post=(full,) if writes else (empty,),
+        role=Role.SEND if writes else Role.RECEIVE, subsystem=outside, channel=c.name)
+
+
+# ------------------------------------------------------------------ back to the whole net
+
+
+class ReplayError(Exception):
+    pass
+
+
+def replay_group(sl: Slice, steps: Sequence[int], marking: frozenset[int] | None = None,
+                 ) -> tuple[list[int], frozenset[int]]:
+    """The group's moves ``steps`` (whole-net transitions, in order) fired in the whole net
+    with every subsystem outside the group standing still, from ``marking`` (default: the
+    initial one); the firing sequence and the marking reached.
+
+    With the outside still, a non-blocking receive from it finds no new data: where the slice
+    took new data (``takes new x``, then ``has received x``), the whole net fires the
+    receive's ``finds no new x`` instead and skips the ``has received``; a non-blocking send
+    to it overwrites its unread value instead of starting on an empty buffer (or the other way
+    round). Both lead the group to the same place. ``ReplayError`` when a step cannot fire."""
+    net = sl.whole
+    rule = net.rule
+    m = set(net.initial if marking is None else marking)
+    out: list[int] = []
+    skip: set[int] = set()            # op places of receives replaced by "finds no new"
+    alt = _alternatives(net, sl.keep)
+    for t in steps:
+        pre = net.transitions[t].pre
+        if skip.intersection(pre):
+            skip.difference_update(pre)
+            continue
+        if not m.issuperset(pre):
+            swap = next((u for u in alt.get(t, ()) if m.issuperset(net.transitions[u].pre)),
+                        None)
+            if swap is None:
+                raise ReplayError(f"{net.transitions[t].label} cannot fire")
+            if len(net.transitions[swap].post) and _is_take(net, t, swap):
+                skip.update(set(net.transitions[t].post) - set(net.transitions[swap].post))
+            t = swap
+        m.difference_update(rule.consume[t])
+        m.update(rule.produce[t])
+        out.append(t)
+    return out, frozenset(m)
+
+
+def _is_take(net: FlatNet, t: int, swap: int) -> bool:
+    """``t`` takes new data into an op place, ``swap`` finds none and goes on past it."""
+    return not set(net.transitions[swap].post) & set(net.transitions[t].post) - \
+        set(net.transitions[swap].pre)
+
+
+def _alternatives(net: FlatNet, group: frozenset[str]) -> dict[int, list[int]]:
+    """Per transition of the group touching a free channel: its siblings taking the other
+    place of the channel from the same places."""
+    out: dict[int, list[int]] = {}
+    by_pre: dict[tuple[str | None, frozenset[int]], list[int]] = {}
+    for t in net.transitions:
+        if t.subsystem in group:
+            by_pre.setdefault((t.subsystem, frozenset(t.pre)), []).append(t.index)
+    for c in channels(net):
+        if not c.free:
+            continue
+        for t in net.transitions:
+            if t.subsystem not in group:
+                continue
+            for x, y in ((c.full, c.empty), (c.empty, c.full)):
+                if x in t.pre:
+                    key = (t.subsystem, frozenset(t.pre) - {x} | {y})
+                    out.setdefault(t.index, []).extend(by_pre.get(key, []))
+    return out
+
+
+def run_outside(net: FlatNet, marking: frozenset[int], group: frozenset[str],
+                max_steps: int = 100_000) -> tuple[list[int], list[int], bool]:
+    """What the rest of the system does while ``group`` stands still: from ``marking``, the
+    subsystems outside the group (and the system's plumbing) fire in turn, one enabled
+    transition each (the lowest), until the marking and turn repeat. Returns the steps to the
+    start of the cycle, the cycle, and whether the run stopped instead in a marking where
+    nothing outside can fire (``cycle`` is then empty)."""
+    rule = net.rule
+    movers = sorted({t.subsystem or "" for t in net.transitions if t.subsystem not in group})
+    by_mover: dict[str, list[int]] = {s: [] for s in movers}
+    for t in net.transitions:
+        if t.subsystem not in group:
+            by_mover[t.subsystem or ""].append(t.index)
+    m = set(marking)
+    seen: dict[tuple[frozenset[int], int], int] = {(frozenset(m), 0): 0}
+    steps: list[int] = []
+    turn = 0
+    while len(steps) < max_steps:
+        fired = None
+        for _ in movers:              # the next mover in turn that can fire
+            s = movers[turn]
+            turn = (turn + 1) % len(movers)
+            fired = next((t for t in by_mover[s] if m.issuperset(rule.pre[t])), None)
+            if fired is not None:
+                break
+        if fired is None:
+            return steps, [], True
+        m.difference_update(rule.consume[fired])
+        m.update(rule.produce[fired])
+        steps.append(fired)
+        key = (frozenset(m), turn)
+        if key in seen:
+            k = seen[key]
+            return steps[:k], steps[k:], False
+        seen[key] = len(steps)
+    raise ReplayError(f"no repetition within {max_steps} steps")

@@ -1,0 +1,255 @@
+"""Slicing at the channels nobody waits on (rssm_dsl/verify/slicing.py, sliced.py) and the
+one-token semiflows that prove safeness without enumerating every minimal one (cover.py).
+
+The sliced verdict must be the whole net's: one table of nets (hand-built, the examples and
+the realistic specs' small cousins) is verified both ways and every verdict, and the set of
+subsystems that lose progress, must agree. Every violation found in a slice comes back as a
+firing sequence of the whole net that the interpreter replays."""
+
+from __future__ import annotations
+
+import json
+from pathlib import Path
+
+import numpy as np
+import pytest
+from netkit import (
+    NetBuilder,
+    channel,
+    loop,
+    mode_pair,
+    pipeline_ring,
+    receive,
+    send,
+    send_send_deadlock,
+    starved_consumer,
+    unsafe_net,
+)
+
+from rssm_dsl.hpn.flat import FlatNet
+from rssm_dsl.hpn.flatten import flatten
+from rssm_dsl.interp import SimOptions, Simulator, build_runtime
+from rssm_dsl.interp.replay import judge, load_counterexample, resolve_steps
+from rssm_dsl.pipeline import compile_file
+from rssm_dsl.verify import VerifyOptions, verify
+from rssm_dsl.verify.budget import Budget
+from rssm_dsl.verify.cover import one_token_semiflows
+from rssm_dsl.verify.invariants import incidence_matrix
+from rssm_dsl.verify.report import Verdict, VerifyReport
+from rssm_dsl.verify.sliced import verify_sliced
+from rssm_dsl.verify.slicing import blocking_groups, channels, slice_net
+
+ROOT = Path(__file__).resolve().parents[2]
+SPECS = ROOT / "bench" / "specs"
+
+
+def _net(path: Path) -> FlatNet:
+    comp = compile_file(path)
+    assert comp.ok and comp.hpn is not None
+    return flatten(comp.hpn)
+
+
+def controllers_with_effectors(blocking_ring: bool) -> FlatNet:
+    """Two controllers A and B, each with an effector talking non-blocking to it; A and B
+    exchange data over blocking channels, in an order that deadlocks them when
+    ``blocking_ring`` (both send first) and not otherwise (B receives first)."""
+    b = NetBuilder("ctl")
+    for ch in ("ab", "ba", "ae", "ea", "be", "eb"):
+        channel(b, ch)
+    for sub in ("A", "B"):
+        for k in range(3):
+            b.place(f"{sub}.s{k}", marked=k == 0, subsystem=sub)
+    send(b, "A", "ab", True, "A.s0", "A.s1")
+    receive(b, "A", "ba", True, "A.s1", "A.s2")
+    if blocking_ring:
+        send(b, "B", "ba", True, "B.s0", "B.s1")
+        receive(b, "B", "ab", True, "B.s1", "B.s2")
+    else:
+        receive(b, "B", "ab", True, "B.s0", "B.s1")
+        send(b, "B", "ba", True, "B.s1", "B.s2")
+    # each controller also trades with its effector, non-blocking both ways
+    for sub, out, inp, eff, e_in, e_out in (("A", "ae", "ea", "EA", "ae", "ea"),
+                                            ("B", "be", "eb", "EB", "be", "eb")):
+        b.place(f"{sub}.s3", subsystem=sub)
+        b.place(f"{sub}.s4", subsystem=sub)
+        send(b, sub, out, False, f"{sub}.s2", f"{sub}.s3")
+        receive(b, sub, inp, False, f"{sub}.s3", f"{sub}.s4")
+        loop(b, sub, f"{sub}.s0", f"{sub}.s4")
+        for k in range(3):
+            b.place(f"{eff}.s{k}", marked=k == 0, subsystem=eff)
+        receive(b, eff, e_in, False, f"{eff}.s0", f"{eff}.s1")
+        send(b, eff, e_out, False, f"{eff}.s1", f"{eff}.s2")
+        loop(b, eff, f"{eff}.s0", f"{eff}.s2")
+    return b.build(subsystems=("A", "B", "EA", "EB"))
+
+
+# ------------------------------------------------------------------------- the groups
+
+
+def test_free_channels_and_groups_of_the_handover() -> None:
+    net = _net(SPECS / "handover_buggy.rssm")
+    free = {c.name: c.free for c in channels(net)}
+    assert free["arm.c.part_pose->base.c.part_pose"] is False          # blocking/blocking
+    assert free["base.c.clamped->arm.c.clamped"] is False              # nonblocking/blocking
+    assert free["arm.c.goal->arm.e.motion.goal"] is True               # nonblocking both
+    assert free["arm.e.motion.setpoint->arm.E.manipulator.setpoint"] is True
+    groups = blocking_groups(net)
+    assert groups[0] == ("arm.c", "base.c")
+    assert sorted(g for (g,) in groups[1:]) == sorted(
+        s for s in net.subsystems if s not in ("arm.c", "base.c"))
+
+
+def test_slice_replaces_the_rest_by_an_environment_per_border_channel() -> None:
+    net = _net(SPECS / "handover_buggy.rssm")
+    sl = slice_net(net, ("arm.c", "base.c"))
+    env = {t.name: t for t, whole in zip(sl.net.transitions, sl.transition_of, strict=True)
+           if whole < 0}
+    # the effector writes tool to arm.c; arm.c's goal is taken by the effector
+    tool = env["env[arm.e.motion.tool->arm.c.tool,write]"]
+    goal = env["env[arm.c.goal->arm.e.motion.goal,take]"]
+    full = {c.name: c for c in channels(sl.net)}
+    assert sl.net.places[tool.pre[0]].label.endswith(": empty")
+    assert sl.net.places[tool.post[0]].label.endswith(": full")
+    assert sl.net.places[goal.pre[0]].label.endswith(": full")
+    assert not any("part_pose" in name for name in env), "channels inside the group stay"
+    assert all(t.subsystem in sl.keep for t, w in zip(sl.net.transitions, sl.transition_of,
+                                                       strict=True)
+               if w >= 0 and t.subsystem is not None)
+    # new(tool) is fed by the environment: a free choice; new(clamped) by base.c: tracked
+    free = set(sl.net.new_sites.free)
+    inputs = dict(sl.net.new_sites.inputs)
+    assert ("arm.c", inputs["arm.c"].index("tool")) in free
+    assert ("arm.c", inputs["arm.c"].index("clamped")) not in free
+    assert full  # the slice still has its channels
+
+
+# ------------------------------------------------------- sliced and whole agree (the table)
+
+
+def _nets() -> dict[str, FlatNet]:
+    nets = {
+        "controllers deadlock, effectors run": controllers_with_effectors(True),
+        "controllers fine, effectors run": controllers_with_effectors(False),
+        "send-send deadlock beside a free loop": send_send_deadlock(third=True),
+        "non-blocking pipeline ring": pipeline_ring(3, "NN"),
+        "non-blocking pair": mode_pair(False, False),
+        "starved consumer": starved_consumer(),
+    }
+    for path in sorted([*(ROOT / "examples").glob("*.rssm"),
+                        *(ROOT / "examples" / "verify").glob("*.rssm")]):
+        nets[path.name] = _net(path)
+    return nets
+
+
+NETS = _nets()
+
+
+def _sliced(net: FlatNet, check_progress: bool = True) -> VerifyReport:
+    budget = Budget(120.0)
+    opts = VerifyOptions(reduction="on", slicing=False, budget=budget,
+                         check_progress=check_progress)
+    return verify_sliced(net, blocking_groups(net), opts, budget, verify)  # type: ignore[arg-type]
+
+
+def _summary(r: VerifyReport) -> tuple[object, ...]:
+    lost = {c.subsystem for c in r.progress} | set(r.progress_lost)
+    return (r.verdict, r.safe, r.deadlock_free, r.progress_ok, frozenset(lost),
+            bool(r.deadlocks))
+
+
+@pytest.mark.parametrize("name", sorted(NETS))
+def test_sliced_verdict_is_the_whole_nets(name: str) -> None:
+    net = NETS[name]
+    if len(blocking_groups(net)) < 2:
+        pytest.skip("one blocking group: nothing to slice")
+    whole = verify(net, VerifyOptions(reduction="off", slicing=False, max_states=200_000))
+    if not whole.complete:
+        pytest.skip("the whole net has too many states to compare with")
+    sliced = _sliced(net)
+    assert _summary(sliced) == _summary(whole), (sliced.notes, whole.notes)
+
+
+def test_the_table_has_violations_and_proofs() -> None:
+    """The agreement above is not vacuous: some nets of the table lose progress, deadlock
+    or verify, and several are sliced."""
+    sliced = [n for n in NETS.values() if len(blocking_groups(n)) > 1]
+    verdicts = [_sliced(n) for n in sliced]
+    assert len(sliced) >= 6
+    assert any(r.progress_ok is False for r in verdicts)
+    assert any(r.verdict is Verdict.VERIFIED for r in verdicts)
+
+
+def test_a_stuck_group_is_a_loss_of_progress_with_a_lasso() -> None:
+    net = controllers_with_effectors(True)
+    r = _sliced(net)
+    assert r.verdict is Verdict.VIOLATED and r.deadlock_free is True
+    assert {c.subsystem for c in r.progress} == {"A", "B"}
+    cx = r.progress[0]
+    names = [t.name for t in cx.steps]
+    assert "A.snd.ab.done" in names and "B.snd.ba.done" in names
+    assert cx.cycle and all(t.subsystem in ("EA", "EB") for t in cx.cycle), \
+        "while A and B wait, the effectors keep running"
+    assert {"A.snd.ab.wait", "B.snd.ba.wait"} <= set(cx.marking)
+
+
+# ------------------------------------------------------------------ the realistic specs
+
+
+def test_buggy_handover_is_violated_and_the_lasso_replays(tmp_path: Path) -> None:
+    path = SPECS / "handover_buggy.rssm"
+    comp = compile_file(path)
+    assert comp.hpn is not None
+    report = verify(flatten(comp.hpn), VerifyOptions(time_limit=60))
+    assert report.verdict is Verdict.VIOLATED
+    assert report.deadlock_free is True, "the effectors and devices keep running"
+    lost = {c.subsystem: c for c in report.progress}
+    assert set(lost) == {"arm.c", "base.c"}
+    marking = lost["arm.c"].marking
+    assert any(m.startswith("arm.c (pick) waits in blocking send of part_pose") for m in marking)
+    assert "base.c (clamp) receives grip_open (blocking): start" in marking
+    out = tmp_path / "report.json"
+    out.write_text(json.dumps(report.to_json()), encoding="utf-8")
+    cx = load_counterexample(out)
+    rt = build_runtime(comp)
+    steps, bad = resolve_steps(rt.net, cx.sequence(), str(out))
+    assert not bad
+    sim = Simulator(rt, SimOptions(forced=steps, record_markings=True))
+    verdict = judge(cx, steps, sim.run(), sim)
+    assert verdict.reproduced, verdict.message
+
+
+@pytest.mark.parametrize("name", ["handover", "rover"])
+def test_corrected_specs_verify_with_progress(name: str) -> None:
+    report = verify(_net(SPECS / f"{name}.rssm"), VerifyOptions(time_limit=60))
+    assert report.verdict is Verdict.VERIFIED, report.why_undecided
+    assert report.method.startswith("sliced")
+
+
+def test_palletizer_is_safe_and_deadlock_free() -> None:
+    report = verify(_net(SPECS / "palletizer.rssm"),
+                    VerifyOptions(time_limit=60, check_progress=False))
+    assert report.verdict is Verdict.VERIFIED_WITHOUT_PROGRESS, report.why_undecided
+
+
+# --------------------------------------------------------------- one-token semiflows
+
+
+@pytest.mark.parametrize("spec", ["handover_buggy", "palletizer"])
+def test_one_token_semiflows_are_semiflows_and_cover_the_net(spec: str) -> None:
+    net = _net(SPECS / f"{spec}.rssm")
+    found = one_token_semiflows(net, range(len(net.places)))
+    c = incidence_matrix(net)
+    for inv in found:
+        y = np.zeros(len(net.places), dtype=np.int64)
+        for p, w in inv.weights:
+            y[p] = w
+        assert not (y @ c).any(), "y . C == 0"
+        assert inv.tokens == sum(1 for p, _ in inv.weights if p in net.initial) <= 1
+    assert set().union(*(i.support for i in found)) == set(range(len(net.places)))
+
+
+def test_one_token_semiflows_do_not_cover_an_unsafe_place() -> None:
+    net = unsafe_net()
+    found = one_token_semiflows(net, range(len(net.places)))
+    x = net.place_index["x"]
+    assert all(x not in i.support for i in found)
