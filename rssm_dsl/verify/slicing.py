@@ -144,13 +144,34 @@ def slice_net(net: FlatNet, keep: Sequence[str]) -> Slice:
         if t.pre and not pre:
             continue            # plumbing waiting only for what is gone
         kept_t.append((t, pre, post))
-    used = {p for _, pre, post in kept_t for p in (*pre, *post)}
-    border = [c for c in channels(net)
-              if (c.producer in group) != (c.consumer in group)]
-    used.update(p for c in border for p in (c.full, c.empty))
+    every = channels(net)
+    border = [c for c in every if (c.producer in group) != (c.consumer in group)]
+    # a free channel inside the group is cut in two: the producer's end gets places of its
+    # own, each end its environment (the data's freshness is all it carries, and that the
+    # environment covers)
+    inner = [c for c in every if c.free and c.producer in group and c.consumer in group]
+    copies: dict[int, int] = {}                # producer's place -> -(k + 1), a new place
+    own: dict[str | None, dict[int, int]] = {}
+    for k, c in enumerate(inner):
+        copies[c.full], copies[c.empty] = -(2 * k + 1), -(2 * k + 2)
+        own.setdefault(c.producer, {}).update({c.full: -(2 * k + 1), c.empty: -(2 * k + 2)})
+    if own:
+        kept_t = [(t, tuple(own.get(t.subsystem, {}).get(p, p) for p in pre),
+                   tuple(own.get(t.subsystem, {}).get(p, p) for p in post))
+                  for t, pre, post in kept_t]
+    used = {p for _, pre, post in kept_t for p in (*pre, *post) if p >= 0}
+    used.update(p for c in (*border, *inner) for p in (c.full, c.empty))
     place_of = tuple(sorted(used))
     new_index = {p: i for i, p in enumerate(place_of)}
     places = [dataclasses.replace(net.places[p], index=i) for i, p in enumerate(place_of)]
+    initial = {new_index[p] for p in net.initial if p in new_index}
+    for p, q in copies.items():
+        new_index[q] = len(places)
+        places.append(dataclasses.replace(net.places[p], index=len(places),
+                                          name=net.places[p].name + "'"))
+        place_of += (p,)
+        if p in net.initial:
+            initial.add(new_index[q])
     transitions: list[FlatTransition] = []
     transition_of: list[int] = []
     t_index: dict[int, int] = {}
@@ -164,10 +185,16 @@ def slice_net(net: FlatNet, keep: Sequence[str]) -> Slice:
         transitions.append(_environment(net, c, c.producer not in group, len(transitions),
                                         new_index[c.full], new_index[c.empty]))
         transition_of.append(-1)
+    for c in inner:
+        transitions.append(_environment(net, c, True, len(transitions),
+                                        new_index[c.full], new_index[c.empty]))
+        transitions.append(_environment(net, c, False, len(transitions),
+                                        new_index[copies[c.full]], new_index[copies[c.empty]]))
+        transition_of += [-1, -1]
     sites = net.new_sites
     # new(x) of an input the environment feeds is a free choice: the environment may have
     # written any number of times since the last use, or not at all
-    from_env = {c.name for c in border if c.consumer in group}
+    from_env = {c.name for c in (*border, *inner) if c.consumer in group}
     free = {(sub, k) for t, sub, k in sites.receives
             if sub in group and net.transitions[t].channel in from_env}
     new_sites = NewSites(
@@ -178,7 +205,7 @@ def slice_net(net: FlatNet, keep: Sequence[str]) -> Slice:
         free=tuple(sorted(free | {x for x in sites.free if x[0] in group})))
     sliced = FlatNet(
         system=net.system, places=tuple(places), transitions=tuple(transitions),
-        initial=frozenset(new_index[p] for p in net.initial if p in new_index),
+        initial=frozenset(initial),
         final=frozenset(new_index[p] for p in net.final if p in new_index),
         subsystems=tuple(s for s in net.subsystems if s in group),
         pages=net.pages,
@@ -198,7 +225,7 @@ def _environment(net: FlatNet, c: Channel, writes: bool, index: int, full: int,
         label=f"{outside} {verb} (environment of the slice, channel {c.name})",
         span=place.span, pre=(empty,) if writes else (full,),
         post=(full,) if writes else (empty,),
-        role=Role.SEND if writes else Role.RECEIVE, subsystem=outside, channel=c.name)
+        role=Role.SEND if writes else Role.RECEIVE, channel=c.name)
 
 
 # ------------------------------------------------------------------ back to the whole net
@@ -224,33 +251,80 @@ def replay_group(sl: Slice, steps: Sequence[int], marking: frozenset[int] | None
     m = set(net.initial if marking is None else marking)
     out: list[int] = []
     skip: set[int] = set()            # op places of receives replaced by "finds no new"
-    alt = _alternatives(net, sl.keep)
+    ahead: dict[int, int] = {}        # steps fired early, to skip when their turn comes
+    chans = channels(net)
+    fulls = {c.name: c.full for c in chans}
+    alt = _alternatives(net, sl.keep, chans)
+    finish = _send_ends(net, sl.keep, chans)
     for t in steps:
         pre = net.transitions[t].pre
+        if ahead.get(t):
+            ahead[t] -= 1
+            continue
         if skip.intersection(pre):
             skip.difference_update(pre)
             continue
         if not m.issuperset(pre):
-            swap = next((u for u in alt.get(t, ()) if m.issuperset(net.transitions[u].pre)),
-                        None)
+            swap = _swap(net, m, t, alt)
+            if swap is None:
+                # a peer of the group between the two steps of a non-blocking send (the
+                # slice cut that channel): its send ends first
+                for u in finish:
+                    if m.issuperset(rule.pre[u]):
+                        m.difference_update(rule.consume[u])
+                        m.update(rule.produce[u])
+                        out.append(u)
+                        ahead[u] = ahead.get(u, 0) + 1
+                swap = t if m.issuperset(pre) else _swap(net, m, t, alt)
             if swap is None:
                 raise ReplayError(f"{net.transitions[t].label} cannot fire")
-            if len(net.transitions[swap].post) and _is_take(net, t, swap):
+            if swap != t and _is_take(net, t, fulls):
                 skip.update(set(net.transitions[t].post) - set(net.transitions[swap].post))
+            taken = swap != t and _is_take(net, swap, fulls)
             t = swap
+            if taken:       # data where the slice found none: take it, then go on
+                m.difference_update(rule.consume[t])
+                m.update(rule.produce[t])
+                out.append(t)
+                t = _receive_end(net, t)
         m.difference_update(rule.consume[t])
         m.update(rule.produce[t])
         out.append(t)
     return out, frozenset(m)
 
 
-def _is_take(net: FlatNet, t: int, swap: int) -> bool:
-    """``t`` takes new data into an op place, ``swap`` finds none and goes on past it."""
-    return not set(net.transitions[swap].post) & set(net.transitions[t].post) - \
-        set(net.transitions[swap].pre)
+def _receive_end(net: FlatNet, take: int) -> int:
+    """The step after ``take`` (``in + full -> op``): the one from its op place alone."""
+    op = set(net.transitions[take].post)
+    sub = net.transitions[take].subsystem
+    for u in net.rule.consumers[min(op)]:
+        if net.transitions[u].subsystem == sub and set(net.transitions[u].pre) == op:
+            return u
+    raise ReplayError(f"no end for {net.transitions[take].label}")
 
 
-def _alternatives(net: FlatNet, group: frozenset[str]) -> dict[int, list[int]]:
+def _swap(net: FlatNet, m: set[int], t: int, alt: dict[int, list[int]]) -> int | None:
+    """An enabled sibling of ``t`` on a free channel, or None."""
+    return next((u for u in alt.get(t, ()) if m.issuperset(net.transitions[u].pre)), None)
+
+
+def _send_ends(net: FlatNet, group: frozenset[str], chans: list[Channel]) -> list[int]:
+    """The group's last steps of non-blocking sends on free channels (``op -> out + full``)."""
+    free = {c.name: c for c in chans if c.free}
+    return [t.index for t in net.transitions
+            if t.subsystem in group and t.role is Role.SEND and t.channel in free
+            and free[t.channel].full in t.post and free[t.channel].full not in t.pre
+            and free[t.channel].empty not in t.pre]
+
+
+def _is_take(net: FlatNet, t: int, fulls: dict[str, int]) -> bool:
+    """``t`` is a receive taking new data (``in + full -> op``)."""
+    tr = net.transitions[t]
+    return tr.role is Role.RECEIVE and fulls.get(tr.channel or "") in tr.pre
+
+
+def _alternatives(net: FlatNet, group: frozenset[str], chans: list[Channel],
+                  ) -> dict[int, list[int]]:
     """Per transition of the group touching a free channel: its siblings taking the other
     place of the channel from the same places."""
     out: dict[int, list[int]] = {}
@@ -258,7 +332,7 @@ def _alternatives(net: FlatNet, group: frozenset[str]) -> dict[int, list[int]]:
     for t in net.transitions:
         if t.subsystem in group:
             by_pre.setdefault((t.subsystem, frozenset(t.pre)), []).append(t.index)
-    for c in channels(net):
+    for c in chans:
         if not c.free:
             continue
         for t in net.transitions:
