@@ -1,14 +1,14 @@
 """What `rssmc verify` does on specifications written the way a robotics engineer writes them
-(issue 15): the four systems of bench/specs/ with an intended verdict in their header (they move to
-examples/verify/ once the verifier decides them within the time limits).
+(issue 15): the four systems of examples/verify/ with an expected verdict in their header
+(handover_buggy, handover, rover, palletizer; tests/verify/test_slicing.py pins the verdicts).
 
     python bench/verify_realistic.py [--limit 60] [--reduction auto] [--no-progress-check]
                                      [--mem-gb 8] [--only NAME]
 
 Each spec is verified by the CLI (`rssmc verify --format json --timeout LIMIT`) in its own
 process, under an address-space limit (--mem-gb) and killed if it runs 60 s past its limit,
-one spec at a time. Per spec the table gives the verdict, the intended verdict (read from the
-spec's header, "Intended verdict of `rssmc verify`: ..."), whether they agree, the wall time
+one spec at a time. Per spec the table gives the verdict, the expected verdict (read from the
+spec's header, "Expected verdict of `rssmc verify`: ..."), whether they agree, the wall time
 to the verdict (compilation included), the states the verifier reports, the method, whether
 a counterexample came with a firing sequence, the peak resident memory of the process and
 what stopped it. It is a benchmark, not a test: it exits 0 whatever the verdicts.
@@ -30,9 +30,9 @@ from pathlib import Path
 from typing import Any
 
 ROOT = Path(__file__).resolve().parent.parent
-SPECS = [ROOT / "bench" / "specs" / f"{name}.rssm"
+SPECS = [ROOT / "examples" / "verify" / f"{name}.rssm"
          for name in ("handover_buggy", "handover", "rover", "palletizer")]
-INTENDED = re.compile(r"Intended verdict of `rssmc verify`:\s*([A-Z]+)")
+INTENDED = re.compile(r"Expected verdict of `rssmc verify`:\s*([A-Z]+)")
 GRACE = 60.0        # seconds past --limit before the process is killed
 
 

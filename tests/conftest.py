@@ -24,6 +24,11 @@ def update_goldens(request: pytest.FixtureRequest) -> bool:
     return flag
 
 
+# examples/verify/ systems written the way engineers write them: beyond full exploration (the
+# sliced verifier decides them, tests/verify/test_slicing.py)
+REALISTIC = frozenset({"handover_buggy", "handover", "rover", "palletizer"})
+
+
 def example_specs() -> list[Path]:
     """Every example system (examples/diagnostics/ holds specs with expected errors)."""
     return sorted(p for p in EXAMPLES.rglob("*.rssm") if "diagnostics" not in p.parts)

@@ -141,6 +141,22 @@ class Budget:
             self.phase, self.states = outer, outer_states
             self._reported_states = outer_states
 
+    @contextmanager
+    def capped(self, seconds: float) -> Iterator[Budget]:
+        """A shorter deadline for what runs inside (a first try); reaching it is not the
+        run's stop: afterwards the run's own deadline holds again and its stop is cleared."""
+        saved = self.deadline
+        cap = time.monotonic() + seconds
+        if saved is None or cap < saved:
+            self.deadline = cap
+        try:
+            yield self
+        finally:
+            self.deadline = saved
+            if (self.stop is not None and self.stop.kind == TIME
+                    and (saved is None or time.monotonic() < saved)):
+                self.stop = None
+
     def elapsed(self) -> float:
         return time.monotonic() - self.start
 

@@ -37,6 +37,8 @@ from rssm_dsl.verify.slicing import ReplayError, Slice, replay_group, run_outsid
 
 Verifier = Callable[[FlatNet, object], VerifyReport]
 CYCLE_PASSES = 6            # replays of a slice's cycle to find the whole net's cycle
+STUBBORN_STATES = 100_000   # a slice's stubborn-set search at most
+SMALL_SLICE = 10_000        # a slice explored whole when it has no more states
 
 
 def verify_sliced(net: FlatNet, groups: Sequence[tuple[str, ...]], opts: object,
@@ -46,31 +48,36 @@ def verify_sliced(net: FlatNet, groups: Sequence[tuple[str, ...]], opts: object,
     start = time.monotonic()
     check_progress = bool(getattr(opts, "check_progress", True))
     slices = [slice_net(net, group) for group in groups]
-    # safeness and deadlocks of every group first (fast: no cycle proviso), then progress,
-    # smallest group first: a limit reached on a large group leaves the rest decided
     quick = dataclasses.replace(opts, check_progress=False)  # type: ignore[type-var]
-    parts: list[tuple[Slice, VerifyReport]] = []
-    for sl in slices:
+    # smallest first: a limit reached on a large group leaves the others decided
+    found: dict[int, VerifyReport] = {}
+    for i in sorted(range(len(slices)), key=lambda i: len(slices[i].net.transitions)):
         if budget.stop is not None:
             break
-        parts.append((sl, verify(sl.net, quick)))
-    if check_progress and len(parts) == len(slices):
-        order = sorted(range(len(parts)), key=lambda i: len(parts[i][0].net.transitions))
-        for i in order:
-            sl, first = parts[i]
-            if budget.stop is not None:
-                break
-            if first.verdict is Verdict.VIOLATED:
-                continue            # a violation is enough; its slice's progress waits
-            full = verify(sl.net, opts)
-            if full.verdict is not Verdict.INCONCLUSIVE or budget.stop is None:
-                parts[i] = (sl, full)
-            else:               # stopped: what the first pass decided stands
-                parts[i] = (sl, dataclasses.replace(
-                    first, progress_requested=True, verdict=Verdict.INCONCLUSIVE,
-                    notes=(*first.notes, *full.notes),
-                    why_undecided=full.why_undecided))
+        sl = slices[i]
+        r = _decide(sl, opts if check_progress else quick, verify)
+        if r.verdict is Verdict.INCONCLUSIVE and check_progress and budget.stop is None:
+            # progress not decided: at least safeness and deadlocks
+            first = _decide(sl, quick, verify)
+            r = dataclasses.replace(first, progress_requested=True, verdict=(
+                first.verdict if first.verdict is Verdict.VIOLATED else Verdict.INCONCLUSIVE),
+                notes=(*r.notes, *first.notes), why_undecided=r.why_undecided)
+        found[i] = r
+    parts = [(slices[i], found[i]) for i in range(len(slices)) if i in found]
     return _combine(net, groups, parts, budget, start, check_progress)
+
+
+def _decide(sl: Slice, opts: object, verify: Verifier) -> VerifyReport:
+    """A slice's report: explored whole when it is small (``SMALL_SLICE`` states: dead
+    transitions and unreachable behaviours come with it), else by stubborn sets (with
+    counterexamples) up to ``STUBBORN_STATES`` states; a slice they do not decide within
+    that leaves the sliced verdict open, and ``verify`` goes on with the whole net."""
+    small = verify(sl.net, dataclasses.replace(  # type: ignore[type-var]
+        opts, reduction="off", max_states=SMALL_SLICE))
+    if small.complete or small.verdict is Verdict.VIOLATED:
+        return small
+    cap = min(int(getattr(opts, "max_states", STUBBORN_STATES)), STUBBORN_STATES)
+    return verify(sl.net, dataclasses.replace(opts, max_states=cap))  # type: ignore[type-var]
 
 
 class _Lifted:
@@ -182,12 +189,17 @@ def _combine(net: FlatNet, groups: Sequence[tuple[str, ...]],
     reports = [r for _, r in parts]
     done = len(parts) == len(groups)
     safe, deadlock_free, progress_ok, verdict = _verdicts(reports, lifted, done, check_progress)
-    notes = [f"sliced at the channels nobody waits on into {len(groups)} blocking group(s), "
-             f"each verified on its own: " + "; ".join(
-                 f"{', '.join(g)} ({r.method}, {r.states:,} states)"
-                 for g, (_, r) in zip(groups, parts, strict=False))]
+    shared = [f"{', '.join(g)} ({r.method}, {r.states:,} states)"
+              for g, (_, r) in zip(groups, parts, strict=False) if len(g) > 1]
+    alone = [r.states for g, (_, r) in zip(groups, parts, strict=False) if len(g) == 1]
+    if alone:
+        shared.append(f"{len(alone)} subsystem(s) alone ({sum(alone):,} states in all)")
+    notes = ["sliced at the channels nobody waits on: "
+             f"{len(groups)} blocking group(s), each verified on its own: " + "; ".join(shared)]
     notes += lifted.failed
     for (sl, r) in parts:
+        if len(sl.keep) == 1 and r.verdict is not Verdict.INCONCLUSIVE:
+            continue            # the free-running ones: their notes say nothing new
         label = ", ".join(sorted(sl.keep))
         notes += [f"[{label}] {n}" for n in r.notes]
     why = next((r.why_undecided for r in reports if r.why_undecided), None)
@@ -215,7 +227,7 @@ def _combine(net: FlatNet, groups: Sequence[tuple[str, ...]],
         invariants_complete=done and all(r.invariants_complete for r in reports),
         invariants_message="; ".join(dict.fromkeys(r.invariants_message for r in reports
                                                    if r.invariants_message)) or None,
-        uncovered_places=tuple(dict.fromkeys(p for r in reports for p in r.uncovered_places)),
+        uncovered_places=_uncovered(parts),
         method="sliced(" + "+".join(dict.fromkeys(r.method for r in reports)) + ")",
         states=sum(r.states for r in reports),
         edges=sum(r.edges for r in reports),
@@ -278,6 +290,18 @@ def _verdicts(reports: list[VerifyReport], lifted: _Lifted, done: bool, check_pr
     else:
         verdict = Verdict.INCONCLUSIVE
     return safe, deadlock_free, progress_ok, verdict
+
+
+def _uncovered(parts: list[tuple[Slice, VerifyReport]]) -> tuple[str, ...]:
+    """The places no slice's invariants prove safe (a slice's invariant bounds its places in
+    the whole net too: the slice can do whatever its group does there)."""
+    proved: set[str] = set()
+    for sl, r in parts:
+        open_ = set(r.uncovered_places)
+        proved.update(p.label or p.name for p in sl.net.places
+                      if (p.label or p.name) not in open_)
+    return tuple(dict.fromkeys(p for _, r in parts for p in r.uncovered_places
+                               if p not in proved))
 
 
 def _all(values: list[bool | None], done: bool) -> bool | None:

@@ -53,33 +53,48 @@ class Channel:
 
 def channels(net: FlatNet) -> list[Channel]:
     """The net's channels (their fused ``full``/``empty`` places, their ends) and whether
-    they are free (the module docstring)."""
+    they are free (the module docstring). Computed once per net."""
+    cached = _CHANNELS.get(id(net))
+    if cached is not None and cached[0] is net:
+        return cached[1]
     places: dict[str, list[int]] = {}
     for p in net.places:
         if p.channel is not None and p.subsystem is None:
             places.setdefault(p.channel, []).append(p.index)
+    users: dict[str, list[FlatTransition]] = {}
+    by_sub: dict[str | None, list[FlatTransition]] = {}
+    for t in net.transitions:
+        by_sub.setdefault(t.subsystem, []).append(t)
+        if t.channel in places and t.subsystem is not None:
+            users.setdefault(t.channel, []).append(t)
+    pres = {sub: {frozenset(t.pre) for t in ts} for sub, ts in by_sub.items()}
     out = []
     for name, ps in places.items():
-        users = [t for t in net.transitions if t.channel == name and t.subsystem is not None]
-        senders = {t.subsystem for t in users if t.role is Role.SEND}
-        receivers = {t.subsystem for t in users if t.role is Role.RECEIVE}
-        filled = {p for t in users if t.role is Role.SEND for p in t.post
+        mine = users.get(name, [])
+        senders = {t.subsystem for t in mine if t.role is Role.SEND}
+        receivers = {t.subsystem for t in mine if t.role is Role.RECEIVE}
+        filled = {p for t in mine if t.role is Role.SEND for p in t.post
                   if p in ps and p not in t.pre}
         if len(ps) != 2 or len(filled) != 1 or len(senders) != 1 or len(receivers) != 1:
             continue            # not a channel's full/empty pair (e.g. new(x) of a subsystem)
         full = filled.pop()
         empty = ps[0] if ps[1] == full else ps[1]
         producer, consumer = senders.pop(), receivers.pop()
-        free = _never_waits(net, producer, full, empty) and _never_waits(net, consumer, full,
-                                                                         empty)
+        free = all(_never_waits(by_sub.get(s, []), pres.get(s, set()), full, empty)
+                   for s in (producer, consumer))
         out.append(Channel(name, full, empty, producer, consumer, free))
+    if len(_CHANNELS) > 64:
+        _CHANNELS.clear()
+    _CHANNELS[id(net)] = (net, out)
     return out
 
 
-def _never_waits(net: FlatNet, subsystem: str | None, full: int, empty: int) -> bool:
+_CHANNELS: dict[int, tuple[FlatNet, list[Channel]]] = {}
+
+
+def _never_waits(own: list[FlatTransition], pres: set[frozenset[int]], full: int,
+                 empty: int) -> bool:
     pair = {full, empty}
-    own = [t for t in net.transitions if t.subsystem == subsystem]
-    pres = {frozenset(t.pre) for t in own}
     for t in own:
         took = pair.intersection(t.pre)
         if not took:

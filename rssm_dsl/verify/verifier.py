@@ -82,7 +82,8 @@ class VerifyOptions:
     max_memory: int | None = None        # bytes resident at most (None: no limit)
     budget: Budget | None = None         # the run's limits; replaces time_limit and max_memory
     slicing: bool = True                 # "auto": blocking groups verified one by one (sliced)
-    slice_after_states: int = 50_000     # ... when the whole net has more states than this
+    slice_after_states: int = 200_000    # ... when the whole net has more states than this
+    slice_after_seconds: float = 0.75    # ... or takes longer to explore
 
     def __post_init__(self) -> None:
         if self.reduction not in REDUCTIONS:
@@ -99,14 +100,24 @@ def verify(net: FlatNet, options: VerifyOptions | None = None) -> VerifyReport:
                       else Budget(opts.time_limit, opts.max_memory))
             # a small net is explored whole (its dead transitions and unreachable behaviours
             # come with it); a larger one group by group
-            whole = verify(net, dataclasses.replace(opts, slicing=False, budget=budget,
-                                                     reduction="off",
-                                                     max_states=opts.slice_after_states))
+            with budget.capped(opts.slice_after_seconds):
+                whole = verify(net, dataclasses.replace(opts, slicing=False, budget=budget,
+                                                         reduction="off",
+                                                         max_states=opts.slice_after_states))
             if whole.complete or whole.verdict is Verdict.VIOLATED or budget.stop is not None:
-                return whole
+                return dataclasses.replace(whole, stop=budget.stop)
             inner = dataclasses.replace(opts, slicing=False, budget=budget, reduction="on")
-            return verify_sliced(net, groups, inner, budget,
-                                 lambda n, o: verify(n, o))  # type: ignore[arg-type]
+            sliced = verify_sliced(net, groups, inner, budget,
+                                   lambda n, o: verify(n, o))  # type: ignore[arg-type]
+            if sliced.verdict is not Verdict.INCONCLUSIVE or budget.stop is not None:
+                return sliced
+            # a group the stubborn sets do not decide (rings of many alike subsystems):
+            # the whole net, compositionally
+            whole = verify(net, dataclasses.replace(opts, slicing=False, budget=budget,
+                                                     auto_full_states=1))
+            return dataclasses.replace(whole, notes=(
+                f"sliced verification left the verdict open ({sliced.why_undecided}); "
+                "the whole net was verified instead", *whole.notes))
     tracked = track_new(net)      # new(x) in the net's places (datanet.py), told back in net's
     if tracked.changed:
         return tracked.report(verify(tracked.net, opts))

@@ -1,6 +1,7 @@
-"""The realistic specifications of bench/specs/ (issue 15): they compile clean, simulate,
+"""The realistic specifications of examples/verify/ (issue 15): they compile clean, simulate,
 and the buggy handover's two control subsystems freeze in a simulation while the corrected
-one's keep going. Their verification verdicts are measured by bench/verify_realistic.py."""
+one's keep going. Their verdicts: tests/verify/test_slicing.py; time to verdict:
+bench/verify_realistic.py."""
 
 from __future__ import annotations
 
@@ -13,7 +14,7 @@ from rssm_dsl.interp import RunConfig, SimOptions, Simulator, build_runtime
 from rssm_dsl.interp.summary import Snapshot
 from rssm_dsl.pipeline import Compilation, compile_file
 
-EXAMPLES = Path(__file__).resolve().parents[2] / "bench" / "specs"
+EXAMPLES = Path(__file__).resolve().parents[2] / "examples" / "verify"
 SPECS = ["handover_buggy", "handover", "rover", "palletizer"]
 CONTROLLERS = ("arm.c", "base.c")
 

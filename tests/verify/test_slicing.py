@@ -9,6 +9,7 @@ firing sequence of the whole net that the interpreter replays."""
 from __future__ import annotations
 
 import json
+import re
 from pathlib import Path
 
 import numpy as np
@@ -38,9 +39,10 @@ from rssm_dsl.verify.invariants import incidence_matrix
 from rssm_dsl.verify.report import Verdict, VerifyReport
 from rssm_dsl.verify.sliced import verify_sliced
 from rssm_dsl.verify.slicing import blocking_groups, channels, slice_net
+from tests.conftest import REALISTIC
 
 ROOT = Path(__file__).resolve().parents[2]
-SPECS = ROOT / "bench" / "specs"
+SPECS = ROOT / "examples" / "verify"
 
 
 def _net(path: Path) -> FlatNet:
@@ -184,7 +186,8 @@ def _nets() -> dict[str, FlatNet]:
     }
     for path in sorted([*(ROOT / "examples").glob("*.rssm"),
                         *(ROOT / "examples" / "verify").glob("*.rssm")]):
-        nets[path.name] = _net(path)
+        if path.stem not in REALISTIC:      # beyond full exploration: pinned below
+            nets[path.name] = _net(path)
     return nets
 
 
@@ -265,14 +268,24 @@ def test_buggy_handover_is_violated_and_the_lasso_replays(tmp_path: Path) -> Non
     assert verdict.reproduced, verdict.message
 
 
-@pytest.mark.parametrize("name", ["handover", "rover"])
-def test_corrected_specs_verify_with_progress(name: str) -> None:
-    report = verify(_net(SPECS / f"{name}.rssm"), VerifyOptions(time_limit=60))
-    assert report.verdict is Verdict.VERIFIED, report.why_undecided
+EXPECTED = re.compile(r"Expected verdict of `rssmc verify`:\s*([A-Z]+)")
+
+
+@pytest.mark.parametrize("name", sorted(REALISTIC))
+def test_realistic_examples_get_the_verdict_their_header_states(name: str) -> None:
+    """With the progress check, within the CLI's default limits (bench/verify_realistic.py
+    times them)."""
+    path = SPECS / f"{name}.rssm"
+    match = EXPECTED.search(path.read_text(encoding="utf-8"))
+    assert match is not None, f"{path} states no expected verdict"
+    report = verify(_net(path), VerifyOptions(time_limit=120))
+    assert report.verdict.value.upper() == match.group(1), report.why_undecided
     assert report.method.startswith("sliced")
+    for cx in (*report.deadlocks, *report.progress):
+        assert cx.steps, "every violation comes with a firing sequence"
 
 
-def test_palletizer_verifies_with_progress() -> None:
+def test_palletizer_slice_cuts_the_free_channels_inside_the_group() -> None:
     """Its robots report their state to the supervisor on free channels inside the blocking
     group: the slice cuts them (their ends each get an environment)."""
     net = _net(SPECS / "palletizer.rssm")
@@ -281,8 +294,11 @@ def test_palletizer_verifies_with_progress() -> None:
            if w < 0 and "picker_state" in t.name]
     assert sorted(cut) == ["env[picker.c.state->supervisor.c.picker_state,take]",
                            "env[picker.c.state->supervisor.c.picker_state,write]"]
-    report = verify(net, VerifyOptions(time_limit=60))
-    assert report.verdict is Verdict.VERIFIED, report.why_undecided
+    inputs = dict(sl.net.new_sites.inputs)["supervisor.c"]
+    assert ("supervisor.c", inputs.index("picker_state")) in sl.net.new_sites.free
+    # the blocking orders stay whole: no environment for them
+    assert not any("order" in t.name for t, w in zip(sl.net.transitions, sl.transition_of,
+                                                      strict=True) if w < 0)
 
 
 # --------------------------------------------------------------- one-token semiflows
