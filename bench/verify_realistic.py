@@ -126,7 +126,7 @@ def measure(spec: Path, args: argparse.Namespace) -> Row:
 
 
 def print_table(rows: list[Row]) -> None:
-    head = (f"{'spec':<15} {'intended':<9} {'verdict':<13} {'agree':<5} {'time s':>7} "
+    head = (f"{'spec':<15} {'expected':<9} {'verdict':<13} {'agree':<5} {'time s':>7} "
             f"{'states':>22} {'method':<28} {'peak MB':>8}  counterexample with firing sequence"
             f" | stopped by")
     print(head)

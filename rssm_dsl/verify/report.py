@@ -39,6 +39,15 @@ EXIT_CODES = {Verdict.VERIFIED: EXIT_VERIFIED, Verdict.VIOLATED: EXIT_VIOLATED,
               Verdict.VERIFIED_WITHOUT_PROGRESS: EXIT_WITHOUT_PROGRESS}
 
 
+# what "loses progress" assumes of the schedule and of the free choices (printed with it)
+PROGRESS_FAIRNESS = "strong"
+PROGRESS_ASSUMPTION = (
+    "strong fairness: a subsystem loses progress when some reachable state lets no "
+    "continuation complete another iteration of it; a run that keeps a move or a free choice "
+    "possible infinitely often and never takes it is not counted (starvation by such a "
+    "schedule is not reported)")
+
+
 def exit_code(verdict: Verdict) -> int:
     """0 verified, 1 violated, 3 inconclusive, 4 verified without the progress check."""
     return EXIT_CODES[verdict]
@@ -251,6 +260,8 @@ class VerifyReport:
             "headline": self.headline(),
             "properties": self.properties(),
             "progress_check": self.progress_requested,
+            "progress_assumption": {"fairness": PROGRESS_FAIRNESS, "text": PROGRESS_ASSUMPTION}
+            if self.progress_requested else None,
             "stopped_by": self.stop.to_json() if self.stop is not None else None,
             "limits": {"time_seconds": self.time_limit, "memory_bytes": self.max_memory},
             "peak_memory_bytes": self.peak_memory,
@@ -277,9 +288,9 @@ def _yes_no(value: bool | None, yes: str, no: str, unknown: str = "not decided")
     return unknown if value is None else (yes if value else no)
 
 
-def render_text(report: VerifyReport, max_invariants: int = 20) -> str:
-    r = report
-    out = [f"system {r.system}: {r.headline()}"]
+def _summary_lines(r: VerifyReport) -> list[str]:
+    """Per property what was found, the assumption, the state space and the limits."""
+    out: list[str] = []
     why = r.stop.short if r.stop is not None else r.why_undecided
     undecided = f"not decided ({why})" if why else "not decided"
     safe = _yes_no(r.safe, "safe", "NOT SAFE", undecided)
@@ -296,6 +307,8 @@ def render_text(report: VerifyReport, max_invariants: int = 20) -> str:
         f"{len(r.progress) + len(r.progress_lost)} subsystem(s) can get stuck while the rest "
         "keeps running",
         "not checked (--no-progress-check)" if not r.progress_requested else undecided))
+    if r.progress_requested:
+        out.append(f"  assuming:   {PROGRESS_ASSUMPTION}")
     if r.method:
         out.append(f"  states:     {r.states} explored ({r.method}"
                    f"{'' if r.complete else ', incomplete'}), {r.edges} firings, depth "
@@ -303,6 +316,12 @@ def render_text(report: VerifyReport, max_invariants: int = 20) -> str:
     else:
         out.append(f"  states:     none explored (no search ran), {r.seconds:.2f} s")
     out.append("  limits:     " + _limits_text(r))
+    return out
+
+
+def render_text(report: VerifyReport, max_invariants: int = 20) -> str:
+    r = report
+    out = [f"system {r.system}: {r.headline()}", *_summary_lines(r)]
     for note in r.notes:
         out.append(f"  note: {note}")
     if r.unsafe is not None:

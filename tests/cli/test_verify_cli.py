@@ -94,3 +94,12 @@ def test_a_ring_of_agents_is_verified_compositionally(tmp_path: Path) -> None:
     report = json.loads(r.stdout)
     assert report["verdict"] == "verified_without_progress" and report["deadlock_free"] is True
     assert report["state_space"]["method"] == "compositional"
+
+
+def test_the_report_states_what_progress_assumes() -> None:
+    spec = EXAMPLES / "verify" / "deadlock_pair.rssm"
+    report = json.loads(verify(spec, "--format", "json").stdout)
+    assert report["progress_assumption"]["fairness"] == "strong"
+    assert "assuming:   strong fairness" in verify(spec).stdout
+    off = json.loads(verify(spec, "--format", "json", "--no-progress-check").stdout)
+    assert off["progress_assumption"] is None

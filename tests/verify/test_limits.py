@@ -169,3 +169,19 @@ def test_external_tools_are_killed_at_the_deadline() -> None:
     assert time.monotonic() - t < 5
     done = run_limited([sys.executable, "-c", "print('ok')"], Budget(time_limit=30.0))
     assert done.returncode == 0 and done.stdout == "ok\n"
+
+
+def test_a_capped_first_try_is_not_the_runs_stop() -> None:
+    """Budget.capped: the first try stops at its own deadline; afterwards the run goes on
+    under its own limit, with no stop recorded; a stop of the run's own stays."""
+    budget = Budget(60.0)
+    with budget.capped(0.05):
+        time.sleep(0.1)
+        assert budget.poll() is not None, "the cap stops what runs inside"
+    assert budget.stop is None and budget.poll() is None
+    assert budget.deadline is not None and budget.deadline - time.monotonic() > 50
+    short = Budget(0.05)
+    with short.capped(30.0):
+        time.sleep(0.1)
+        assert short.poll() is not None
+    assert short.stop is not None, "the run's own deadline is a stop"
