@@ -14,6 +14,7 @@ from pathlib import Path
 
 import numpy as np
 import pytest
+from conftest import requires_spin
 from netkit import (
     NetBuilder,
     channel,
@@ -36,6 +37,7 @@ from rssm_dsl.verify import VerifyOptions, verify
 from rssm_dsl.verify.budget import Budget
 from rssm_dsl.verify.cover import one_token_semiflows
 from rssm_dsl.verify.invariants import incidence_matrix
+from rssm_dsl.verify.promela import run_spin
 from rssm_dsl.verify.report import Verdict, VerifyReport
 from rssm_dsl.verify.sliced import verify_sliced
 from rssm_dsl.verify.slicing import blocking_groups, channels, slice_net
@@ -217,6 +219,29 @@ def test_sliced_verdict_is_the_whole_nets(name: str) -> None:
         pytest.skip("the whole net has too many states to compare with")
     sliced = _sliced(net)
     assert _summary(sliced) == _summary(whole), (sliced.notes, whole.notes)
+
+
+@requires_spin
+@pytest.mark.parametrize("name", sorted(NETS))
+def test_spin_agrees_on_every_slice(name: str) -> None:
+    """SPIN, an independent checker, on every slice of the table: a slice has a reachable
+    deadlock (its group is stuck for good) iff our search of that slice finds one, and it is
+    unsafe iff ours says so."""
+    net = NETS[name]
+    groups = blocking_groups(net)
+    if len(groups) < 2:
+        pytest.skip("one blocking group: nothing to slice")
+    for group in groups:
+        sl = slice_net(net, group)
+        ours = verify(sl.net, VerifyOptions(reduction="off", slicing=False,
+                                            check_progress=False, max_states=200_000))
+        if not ours.complete:
+            continue
+        spin = run_spin(sl.net, timeout=120, separate=True)
+        assert spin.ran, spin.message
+        assert spin.complete or spin.deadlock or spin.unsafe, spin.message  # pan stops at errors
+        assert spin.deadlock == bool(ours.deadlocks), (group, spin.message)
+        assert spin.unsafe == (ours.safe is False), (group, spin.message)
 
 
 def test_the_table_has_violations_and_proofs() -> None:
