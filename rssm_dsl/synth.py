@@ -188,18 +188,18 @@ def mixed_ring_system(n: int, links: str = "B", effector_every: int = 3) -> str:
         eff_decl = ("      output command: float to e.arm nonblocking\n"
                     "      input position: float from e.arm nonblocking\n") if has_effector else ""
         eff_update = "        update command { command := token }\n" if has_effector else ""
-        effector = f"""    effector arm @ 500 Hz {{
+        effector = """    effector arm @ 500 Hz {
       input command: float from c nonblocking
       input measured: float from E.servo nonblocking
       output setpoint: float to E.servo nonblocking
       output position: float to c nonblocking
-      behaviour follow {{
-        update setpoint {{ setpoint := command }}
-        update position {{ position := measured }}
+      behaviour follow {
+        update setpoint { setpoint := command }
+        update position { position := measured }
         terminal never when false
-      }}
+      }
       initial follow
-    }}
+    }
     real effector servo: Servo
 """ if has_effector else ""
         agents.append(f"""  agent a{k} {{

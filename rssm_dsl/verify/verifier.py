@@ -16,10 +16,15 @@ Pipeline:
      page by page, each piece reduced modulo divergence-preserving branching bisimilarity
      once what it hides is hidden. Exact safeness, deadlock and progress verdicts and the
      reachable behaviours, without counterexamples and without dead transitions.
-   - ``"auto"`` (default): full exploration up to ``auto_full_states`` markings (and
-     ``auto_full_words`` of memory; it gives dead transitions and unreachable behaviours
-     too); beyond, the compositional check; the stubborn-set search (as for ``"on"``) runs
-     when that gives no verdict, or to find a counterexample for a violation it found.
+   - ``"auto"`` (default): a first full exploration, ``slice_after_seconds`` and
+     ``slice_after_states`` at most; a net that does not fit and has several blocking groups
+     is verified group by group (``sliced``: each slice explored whole when small, else by
+     stubborn sets; violations replayed in the whole net), with a third of the time left;
+     when that leaves the verdict open, the whole net: full exploration up to
+     ``auto_full_states`` markings (and ``auto_full_words`` of memory; it gives dead
+     transitions and unreachable behaviours too; 0: none), then the compositional check;
+     the stubborn-set search (as for ``"on"``) runs when that gives no verdict, or to find
+     a counterexample for a violation it found.
 3. Verdict: *violated* when any violation was found (a found deadlock or unsafe firing is real
    even if the search was cut short); *verified* when safeness, deadlock freedom and progress
    are all established; *verified without progress* when safeness and deadlock freedom are
@@ -63,12 +68,14 @@ from rssm_dsl.verify.stubborn import explore_reduced
 
 REDUCTIONS = ("auto", "on", "off", "compositional")
 SMALL_NET = 400        # places: below, the minimal semiflows are always enumerated
+SLICES_SHARE = 1 / 3   # of the time left, for the sliced verification (the rest: whole net)
 
 
 @dataclass(frozen=True)
 class VerifyOptions:
     max_states: int = 5_000_000          # per exploration (per composition, compositionally)
     auto_full_states: int = 1_000_000    # "auto": the full search's share before the others
+    #                                      (0: none, the compositional check first)
     auto_full_words: int = 16_000_000    # ... and its memory share, in 64-bit marking words
     time_limit: float | None = 300.0     # seconds for the whole verification
     reduction: str = "auto"              # "auto", "on" (stubborn sets), "off" (full only),
@@ -107,14 +114,17 @@ def verify(net: FlatNet, options: VerifyOptions | None = None) -> VerifyReport:
             if whole.complete or whole.verdict is Verdict.VIOLATED or budget.stop is not None:
                 return dataclasses.replace(whole, stop=budget.stop)
             inner = dataclasses.replace(opts, slicing=False, budget=budget, reduction="on")
-            sliced = verify_sliced(net, groups, inner, budget,
-                                   lambda n, o: verify(n, o))  # type: ignore[arg-type]
+            left = budget.remaining()
+            # the slices get a third of the time left: the whole net may need the rest
+            with budget.capped(SLICES_SHARE * left if left is not None else float("inf")):
+                sliced = verify_sliced(net, groups, inner, budget,
+                                       lambda n, o: verify(n, o))  # type: ignore[arg-type]
             if sliced.verdict is not Verdict.INCONCLUSIVE or budget.stop is not None:
-                return sliced
+                return dataclasses.replace(sliced, stop=budget.stop)
             # a group the stubborn sets do not decide (rings of many alike subsystems):
             # the whole net, compositionally
             whole = verify(net, dataclasses.replace(opts, slicing=False, budget=budget,
-                                                     auto_full_states=1))
+                                                     auto_full_states=0))
             return dataclasses.replace(whole, notes=(
                 f"sliced verification left the verdict open ({sliced.why_undecided}); "
                 "the whole net was verified instead", *whole.notes))
@@ -263,7 +273,8 @@ def _searches(net: FlatNet, nb: NetBits, opts: VerifyOptions, safe_mask: int,
     full: SearchResult | None = None
     reduced: SearchResult | None = None
     comp: ComposeResult | None = None
-    if opts.reduction in ("auto", "off") and budget.stop is None:
+    skip_full = opts.reduction == "auto" and opts.auto_full_states == 0
+    if opts.reduction in ("auto", "off") and budget.stop is None and not skip_full:
         limit = opts.max_states
         if opts.reduction == "auto":
             limit = min(limit, opts.auto_full_states, max(10_000, opts.auto_full_words // nb.nwords))
@@ -273,9 +284,10 @@ def _searches(net: FlatNet, nb: NetBits, opts: VerifyOptions, safe_mask: int,
         if full.stopped and full.unsafe is None:
             notes += _stopped_note("full exploration", full.stopped, budget)
     # "auto": the full search ran out of states without finding a violation
-    open_after_full = (opts.reduction == "auto" and full is not None and not full.complete
-                       and full.unsafe is None and not full.deadlocks)
-    if budget.stop is None and (opts.reduction == "compositional" or (
+    open_after_full = skip_full or (opts.reduction == "auto" and full is not None
+                                    and not full.complete and full.unsafe is None
+                                    and not full.deadlocks)
+    if budget.stop is None and (opts.reduction == "compositional" or skip_full or (
             open_after_full and full is not None and "state limit" in (full.stopped or ""))):
         comp, comp_notes = _compositional(net, nb, opts, budget)
         notes += comp_notes
