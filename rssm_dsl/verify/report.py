@@ -16,6 +16,7 @@ no violation found. 2 is left to usage errors and bad input (``rssm_dsl.commands
 from __future__ import annotations
 
 import json
+import re
 from dataclasses import dataclass, field
 from enum import Enum
 from typing import Any
@@ -53,6 +54,9 @@ def exit_code(verdict: Verdict) -> int:
     return EXIT_CODES[verdict]
 
 
+_BUFFER = re.compile(r"(?:send of|receives|sends) (\w+)")
+
+
 def step_text(t: FlatTransition) -> str:
     """One step of a counterexample: ``label (file:line)``."""
     return f"{t.label or t.name} ({t.span.location})"
@@ -81,8 +85,20 @@ class Counterexample:
     cycle: tuple[FlatTransition, ...] = ()
     cycle_marking: tuple[str, ...] = ()
 
+    def stuck_at(self) -> tuple[str, ...]:
+        """For a loss of progress: where the subsystem stands in the marking reached (its
+        places) and the state of the channels it is sending or receiving on there."""
+        if self.kind != "progress" or self.subsystem is None:
+            return ()
+        own = [m for m in self.marking if m.startswith(f"{self.subsystem} ")]
+        buffers = {b for m in own for b in _BUFFER.findall(m)}
+        channels = [m for m in self.marking if m.startswith("channel ") and any(
+            f"{self.subsystem}.{b} " in m for b in buffers)]
+        return (*own, *channels)
+
     def lines(self) -> list[str]:
-        out = [f"  {i + 1:>3}. {step_text(t)}" for i, t in enumerate(self.steps)]
+        out = [f"    stands at: {x}" for x in self.stuck_at()]
+        out += [f"  {i + 1:>3}. {step_text(t)}" for i, t in enumerate(self.steps)]
         if not self.steps:
             out.append("    (in the initial marking)")
         if self.kind == "unsafe":
@@ -109,6 +125,7 @@ class Counterexample:
         if self.doubled:
             data["doubled"] = list(self.doubled)
         if self.kind == "progress":
+            data["stuck_at"] = list(self.stuck_at())
             data["to_cycle"] = [_transition_json(t) for t in self.to_cycle]
             data["cycle"] = [_transition_json(t) for t in self.cycle]
             data["cycle_marking"] = list(self.cycle_marking)

@@ -282,6 +282,12 @@ def test_buggy_handover_is_violated_and_the_lasso_replays(tmp_path: Path) -> Non
     marking = lost["arm.c"].marking
     assert any(m.startswith("arm.c (pick) waits in blocking send of part_pose") for m in marking)
     assert "base.c (clamp) receives grip_open (blocking): start" in marking
+    # where each stands, and the channel it waits on: part_pose full, grip_open empty
+    assert lost["arm.c"].stuck_at()[-1] == (
+        "channel arm.c.part_pose -> base.c.part_pose (blocking/blocking): full")
+    assert lost["base.c"].stuck_at() == (
+        "base.c (clamp) receives grip_open (blocking): start",
+        "channel arm.c.grip_open -> base.c.grip_open (blocking/blocking): empty")
     out = tmp_path / "report.json"
     out.write_text(json.dumps(report.to_json()), encoding="utf-8")
     cx = load_counterexample(out)
