@@ -54,9 +54,11 @@ def verify_cmd(
         show_default=False)] = None,
     format: Annotated[Format, typer.Option("--format", "-f", help="text or json")] = Format.text,
     reduction: Annotated[str, typer.Option(
-        help="auto (full exploration; when it does not fit, the compositional check, then "
-             "stubborn sets), off (full exploration only), on (stubborn sets only), "
-             "compositional (page by page, reduced modulo branching bisimulation)")]
+        help="auto (full exploration; when it does not fit, each group of subsystems "
+             "that wait on each other verified on its own and its violations replayed in "
+             "the whole net; else the compositional check, then stubborn sets), off (full "
+             "exploration of the whole net only), on (stubborn sets only), compositional "
+             "(page by page, reduced modulo branching bisimulation)")]
     = "auto",
     invariants: Annotated[bool, typer.Option(help="Compute the minimal P-invariants.")] = True,
     progress_check: Annotated[bool, typer.Option("--progress-check/--no-progress-check",
