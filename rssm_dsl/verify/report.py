@@ -206,6 +206,9 @@ class VerifyReport:
     # and the conditions left free choices
     new_tracked_cases: int = 0
     free_conditions: tuple[FreeCondition, ...] = field(default=())
+    # sliced verification (verify/sliced.py): per blocking group its subsystems and whether
+    # its slice can get stuck for good (a deadlock of the slice; None: not decided)
+    groups: tuple[tuple[tuple[str, ...], bool | None], ...] = field(default=())
 
     @property
     def exit_code(self) -> int:
@@ -282,6 +285,7 @@ class VerifyReport:
             "stopped_by": self.stop.to_json() if self.stop is not None else None,
             "limits": {"time_seconds": self.time_limit, "memory_bytes": self.max_memory},
             "peak_memory_bytes": self.peak_memory,
+            "groups": [{"subsystems": list(g), "stuck": stuck} for g, stuck in self.groups],
             "conditions": {"new_tracked_cases": self.new_tracked_cases,
                            "free_choices": [c.to_json() for c in self.free_conditions]},
         }

@@ -8,6 +8,7 @@ firing sequence of the whole net that the interpreter replays."""
 
 from __future__ import annotations
 
+import dataclasses
 import json
 import re
 from pathlib import Path
@@ -354,3 +355,20 @@ def test_one_token_semiflows_do_not_cover_an_unsafe_place() -> None:
     found = one_token_semiflows(net, range(len(net.places)))
     x = net.place_index["x"]
     assert all(x not in i.support for i in found)
+
+
+@requires_spin
+def test_cross_check_runs_spin_on_every_slice() -> None:
+    """`rssmc verify --cross-check` on a sliced verification: SPIN on each group's slice
+    agrees on whether the group can get stuck for good."""
+    from rssm_dsl.commands.verify import _spin_slices
+
+    net = _net(ROOT / "examples" / "verify" / "handover_buggy.rssm")
+    report = verify(net, VerifyOptions(time_limit=60, check_progress=False))
+    assert dict(report.groups)[("arm.c", "base.c")] is True, "the controllers get stuck"
+    assert sum(1 for _, stuck in report.groups if stuck is False) == 10
+    free_running = [(g, s) for g, s in report.groups if len(g) == 1]
+    small = dataclasses.replace(report, groups=tuple(free_running))
+    line, data = _spin_slices(net, small, None, Budget(120.0))
+    assert data["ran"] and data["agrees"], line
+    assert all(row["agrees"] is True for row in data["slices"]), data
