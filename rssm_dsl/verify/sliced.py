@@ -28,27 +28,31 @@ from __future__ import annotations
 import dataclasses
 import time
 from collections.abc import Callable, Sequence
+from typing import TYPE_CHECKING
 
-from rssm_dsl.hpn.flat import FlatNet
+from rssm_dsl.hpn.flat import FlatNet, FlatTransition
 from rssm_dsl.verify.budget import Budget
 from rssm_dsl.verify.progress import live_places
 from rssm_dsl.verify.report import Counterexample, Verdict, VerifyReport, marking_labels
 from rssm_dsl.verify.slicing import ReplayError, Slice, replay_group, run_outside, slice_net
 
-Verifier = Callable[[FlatNet, object], VerifyReport]
+if TYPE_CHECKING:
+    from rssm_dsl.verify.verifier import VerifyOptions
+
+Verifier = Callable[[FlatNet, "VerifyOptions"], VerifyReport]
 CYCLE_PASSES = 6            # replays of a slice's cycle to find the whole net's cycle
 STUBBORN_STATES = 100_000   # a slice's stubborn-set search at most
 SMALL_SLICE = 10_000        # a slice explored whole when it has no more states
 
 
-def verify_sliced(net: FlatNet, groups: Sequence[tuple[str, ...]], opts: object,
+def verify_sliced(net: FlatNet, groups: Sequence[tuple[str, ...]], opts: VerifyOptions,
                   budget: Budget, verify: Verifier) -> VerifyReport:
     """The report on ``net`` from its groups' slices, each verified by ``verify`` with
     ``opts`` (slicing off, the run's ``budget`` shared)."""
     start = time.monotonic()
-    check_progress = bool(getattr(opts, "check_progress", True))
+    check_progress = opts.check_progress
     slices = [slice_net(net, group) for group in groups]
-    quick = dataclasses.replace(opts, check_progress=False)  # type: ignore[type-var]
+    quick = dataclasses.replace(opts, check_progress=False)
     # smallest first: a limit reached on a large group leaves the others decided
     found: dict[int, VerifyReport] = {}
     for i in sorted(range(len(slices)), key=lambda i: len(slices[i].net.transitions)):
@@ -67,17 +71,16 @@ def verify_sliced(net: FlatNet, groups: Sequence[tuple[str, ...]], opts: object,
     return _combine(net, groups, parts, budget, start, check_progress)
 
 
-def _decide(sl: Slice, opts: object, verify: Verifier) -> VerifyReport:
+def _decide(sl: Slice, opts: VerifyOptions, verify: Verifier) -> VerifyReport:
     """A slice's report: explored whole when it is small (``SMALL_SLICE`` states: dead
     transitions and unreachable behaviours come with it), else by stubborn sets (with
     counterexamples) up to ``STUBBORN_STATES`` states; a slice they do not decide within
     that leaves the sliced verdict open, and ``verify`` goes on with the whole net."""
-    small = verify(sl.net, dataclasses.replace(  # type: ignore[type-var]
-        opts, reduction="off", max_states=SMALL_SLICE))
+    small = verify(sl.net, dataclasses.replace(opts, reduction="off", max_states=SMALL_SLICE))
     if small.complete or small.verdict is Verdict.VIOLATED:
         return small
-    cap = min(int(getattr(opts, "max_states", STUBBORN_STATES)), STUBBORN_STATES)
-    return verify(sl.net, dataclasses.replace(opts, max_states=cap))  # type: ignore[type-var]
+    cap = min(opts.max_states, STUBBORN_STATES)
+    return verify(sl.net, dataclasses.replace(opts, max_states=cap))
 
 
 class _Lifted:
@@ -90,7 +93,7 @@ class _Lifted:
         self.unsafe: Counterexample | None = None
         self.failed: list[str] = []
 
-    def _steps(self, steps: Sequence[int]) -> tuple:  # type: ignore[type-arg]
+    def _steps(self, steps: Sequence[int]) -> tuple[FlatTransition, ...]:
         return tuple(self.net.transitions[t] for t in steps)
 
     def _labels(self, m: frozenset[int]) -> tuple[str, ...]:

@@ -117,8 +117,7 @@ def verify(net: FlatNet, options: VerifyOptions | None = None) -> VerifyReport:
             left = budget.remaining()
             # the slices get a third of the time left: the whole net may need the rest
             with budget.capped(SLICES_SHARE * left if left is not None else float("inf")):
-                sliced = verify_sliced(net, groups, inner, budget,
-                                       lambda n, o: verify(n, o))  # type: ignore[arg-type]
+                sliced = verify_sliced(net, groups, inner, budget, verify)
             if sliced.verdict is not Verdict.INCONCLUSIVE or budget.stop is not None:
                 return dataclasses.replace(sliced, stop=budget.stop)
             # a group the stubborn sets do not decide (rings of many alike subsystems):
