@@ -134,6 +134,7 @@ def _verify(budget: Budget, live: _Live | None, file: Path, format: Format, redu
     from rssm_dsl.hpn.flatten import flatten
     from rssm_dsl.pipeline import compile_file
     from rssm_dsl.verify import VerifyOptions, render_text, verify
+    from rssm_dsl.verify.dataplan import value_plan
     from rssm_dsl.verify.report import Verdict
 
     with budget.running("the compilation"):
@@ -143,19 +144,21 @@ def _verify(budget: Budget, live: _Live | None, file: Path, format: Format, redu
             return EXIT_BAD_INPUT
         net = flatten(comp.hpn)
         budget.poll()               # a limit reached while compiling is the compilation's
+    with budget.running("the compilation"):
+        values = value_plan(comp, net)
     if promela is not None:
         from rssm_dsl.emit.write import write_outputs
         from rssm_dsl.verify.promela import to_promela
 
         write_outputs(promela.parent if str(promela.parent) else Path("."),
-                      {promela.name: to_promela(net)})
+                      {promela.name: to_promela(net, values)})
     options = VerifyOptions(max_states=max_states, reduction=reduction, invariants=invariants,
-                            check_progress=progress_check, budget=budget)
+                            check_progress=progress_check, budget=budget, values=values)
     result = verify(net, options)
     extra: dict[str, Any] = {}
     text_extra: list[str] = []
     if cross_check:
-        extra, text_extra = _cross_check(net, result, comp.hpn, budget)
+        extra, text_extra = _cross_check(net, result, comp.hpn, budget, values)
     if live is not None:
         live.clear()
     if format is Format.json:
@@ -243,7 +246,7 @@ CPNCHECK_MAX_STATES = 5_000
 
 
 def _cross_check(net: Any, result: Any, hpn: Any = None, budget: Budget | None = None,
-                 ) -> tuple[dict[str, Any], list[str]]:
+                 values: Any = None) -> tuple[dict[str, Any], list[str]]:
     """SPIN and 4ti2 on the same flat net, cpncheck on the unflattened HPN (small nets
     only); their answers beside ours. Each runs under the run's budget (killed at its
     deadline, its memory counted), and not at all once a limit was reached."""
@@ -255,17 +258,17 @@ def _cross_check(net: Any, result: Any, hpn: Any = None, budget: Budget | None =
             line, data = f": not run ({budget.stop.message})", {"ran": False,
                                                                "message": budget.stop.message}
         else:
-            line, data = check(net, result, hpn, budget)
+            line, data = check(net, result, hpn, budget, values)
         lines.append(f"  {name}{line}")
         out[name.lower().replace(" ", "_")] = data
     return out, lines
 
 
-def _spin(net: Any, result: Any, hpn: Any, budget: Budget | None,
+def _spin(net: Any, result: Any, hpn: Any, budget: Budget | None, values: Any = None,
           ) -> tuple[str, dict[str, Any]]:
     from rssm_dsl.verify.promela import run_spin
 
-    spin = run_spin(net, separate=True, budget=budget)     # stopped at the run's deadline
+    spin = run_spin(net, separate=True, budget=budget, values=values)     # stopped at the run's deadline
     if not spin.available or not spin.ran:
         return f": not run ({spin.message})", {"ran": False, "message": spin.message}
     # a violation SPIN found is definite; "none found" only counts after a complete search
@@ -280,7 +283,7 @@ def _spin(net: Any, result: Any, hpn: Any, budget: Budget | None,
              "seconds": round(spin.total_seconds, 3), "agrees": agree})
 
 
-def _spin_slices(net: Any, result: Any, hpn: Any, budget: Budget | None,
+def _spin_slices(net: Any, result: Any, hpn: Any, budget: Budget | None, values: Any = None,
                  ) -> tuple[str, dict[str, Any]]:
     """SPIN on each blocking group's slice (verify/slicing.py): a reachable deadlock of
     the slice (its group stuck for good) against ours."""
@@ -292,7 +295,7 @@ def _spin_slices(net: Any, result: Any, hpn: Any, budget: Budget | None,
         return f": not run ({why})", {"ran": False, "message": why}
     rows = []
     for group, stuck in result.groups:
-        spin = run_spin(slice_net(net, group).net, budget=budget)
+        spin = run_spin(slice_net(net, group).net, budget=budget, values=values)
         decided = spin.ran and (spin.complete or bool(spin.deadlock))
         agree = (spin.deadlock == stuck) if decided and stuck is not None else None
         rows.append({"subsystems": list(group), "ours": stuck,
@@ -305,11 +308,11 @@ def _spin_slices(net: Any, result: Any, hpn: Any, budget: Budget | None,
             {"ran": True, "slices": rows, "agrees": counts["DISAGREE"] == 0})
 
 
-def _fourtitwo(net: Any, result: Any, hpn: Any, budget: Budget | None,
+def _fourtitwo(net: Any, result: Any, hpn: Any, budget: Budget | None, values: Any = None,
                ) -> tuple[str, dict[str, Any]]:
     from rssm_dsl.verify.fourtitwo import semiflows_4ti2
 
-    fti = semiflows_4ti2(net, budget=budget)
+    fti = semiflows_4ti2(net, budget=budget, values=values)
     if not fti.available or not fti.message.endswith("P-semiflows"):   # missing, failed
         return f": not run ({fti.message})", {"ran": False, "message": fti.message}
     return (f": {len(fti.semiflows)} minimal P-semiflows (ours: {len(result.invariants)}) in "
@@ -318,10 +321,13 @@ def _fourtitwo(net: Any, result: Any, hpn: Any, budget: Budget | None,
              "seconds": round(fti.seconds, 3)})
 
 
-def _cpncheck(net: Any, result: Any, hpn: Any, budget: Budget | None,
+def _cpncheck(net: Any, result: Any, hpn: Any, budget: Budget | None, values: Any = None,
               ) -> tuple[str, dict[str, Any]]:
     """cpncheck expands the hierarchy of the .cpn export itself: it confirms our flattening
     (on nets under CPNCHECK_MAX_STATES states, so it needs no budget)."""
+    if result.tracked_values:
+        why = "values are tracked (cpncheck explores them as free choices)"
+        return f": not run ({why})", {"ran": False, "message": why}
     if hpn is None or result.method != "full" or not result.complete:
         why = "no full exploration of ours to compare with" if hpn is not None else "no HPN"
         return f": not run ({why})", {"ran": False, "message": why}

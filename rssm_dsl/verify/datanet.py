@@ -85,6 +85,10 @@ class TrackedNet:
     place_origin: tuple[int | None, ...]  # per place of net: the source's; None: new(x)'s
     tracked: tuple[FlatCondition, ...]    # the source's conditions decided by the state
     free: tuple[FlatCondition, ...]       # the source's conditions left free choices
+    # per fork variant of net (by name): new(x) of each input of its subsystem as the
+    # variant takes it (None: not tracked, a free choice)
+    combinations: dict[str, tuple[bool | None, ...]] = field(default_factory=dict)
+    values: tuple[str, ...] = ()          # the values tracked (rssm_dsl/verify/valuenet.py)
 
     @property
     def changed(self) -> bool:
@@ -123,7 +127,8 @@ class TrackedNet:
             dead_transitions=self.dead(r.dead_transitions),
             uncovered_places=self.labels(r.uncovered_places),
             free_conditions=free_conditions(self.source, self.free),
-            new_tracked_cases=len(self.tracked))
+            new_tracked_cases=len([c for c in self.tracked if c.kind == "case"]),
+            tracked_values=self.values)
 
 
 def free_conditions(net: FlatNet, conditions: Iterable[FlatCondition],
@@ -237,6 +242,7 @@ class _Builder:
         self.place_origin: list[int | None] = list(range(len(net.places)))
         self.initial = set(net.initial)
         self.variants: dict[int, list[Variant]] = {}     # source transition -> its variants
+        self.combinations: dict[str, tuple[bool | None, ...]] = {}
 
     def add_place(self, p: FlatPlace, origin: int | None) -> int:
         i = len(self.places)
@@ -290,6 +296,11 @@ class _Builder:
         for f in s.forks:
             tr = src.transitions[f]
             rest = tuple(q for q in tr.post if q not in split)
+            for varpi in range(1, (1 << n) + 1):
+                c = combination(varpi, n)
+                known = dict(zip(tracked, c, strict=True))
+                self.combinations[derived(tr.name, varpi)] = tuple(known.get(k)
+                                                                   for k in range(s.n))
             self.variants[f] = [
                 (derived(tr.name, varpi),
                  (*tr.pre, *(s.flags[k][0 if c[i] else 1] for i, k in enumerate(tracked))),
@@ -311,7 +322,8 @@ class _Builder:
         free = tuple(c for c in src.conditions if c.transition not in cases)
         net = FlatNet(src.system, tuple(self.places), tuple(transitions),
                       frozenset(self.initial), src.final, src.subsystems, src.pages)
-        return TrackedNet(net, src, tuple(origin), tuple(self.place_origin), tracked, free)
+        return TrackedNet(net, src, tuple(origin), tuple(self.place_origin), tracked, free,
+                          self.combinations)
 
 
 def track_new(net: FlatNet) -> TrackedNet:

@@ -14,10 +14,15 @@ import subprocess
 import tempfile
 import time
 from dataclasses import dataclass
+from typing import TYPE_CHECKING
 
 from rssm_dsl.hpn.flat import FlatNet
 from rssm_dsl.verify.budget import Budget, LimitReached, run_limited
 from rssm_dsl.verify.datanet import track_new
+from rssm_dsl.verify.valuenet import track_values
+
+if TYPE_CHECKING:
+    from rssm_dsl.verify.dataplan import ValuePlan
 from rssm_dsl.verify.invariants import incidence_matrix
 
 CANDIDATES = ("4ti2-rays", "rays", "/usr/lib/4ti2/bin/rays",
@@ -43,12 +48,12 @@ def find_rays() -> str | None:
     return None
 
 
-def semiflows_4ti2(net: FlatNet, timeout: float = 120.0,
-                   budget: Budget | None = None) -> FourTiTwoResult:
+def semiflows_4ti2(net: FlatNet, timeout: float = 120.0, budget: Budget | None = None,
+                   values: ValuePlan | None = None) -> FourTiTwoResult:
     """Run ``rays`` on the transposed incidence matrix of ``net`` (under the run's
     ``budget``, if any: killed at its deadline or on Ctrl-C), with new(x) in its places as
     the verifier explores it (``datanet``)."""
-    net = track_new(net).net
+    net = track_values(track_new(net), values).net
     if budget is None:
         return _semiflows_4ti2(net, timeout, None)
     with budget.running("the 4ti2 cross-check"):

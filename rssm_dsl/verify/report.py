@@ -49,6 +49,10 @@ PROGRESS_ASSUMPTION = (
     "schedule is not reported)")
 
 
+VALUES_ASSUMPTION = ("assuming no operation fails at run time (E802): terminal and error "
+                     "conditions are evaluated on the values")
+
+
 def exit_code(verdict: Verdict) -> int:
     """0 verified, 1 violated, 3 inconclusive, 4 verified without the progress check."""
     return EXIT_CODES[verdict]
@@ -206,6 +210,8 @@ class VerifyReport:
     # and the conditions left free choices
     new_tracked_cases: int = 0
     free_conditions: tuple[FreeCondition, ...] = field(default=())
+    # the finite values tracked in the state (valuenet.py), in the user's words
+    tracked_values: tuple[str, ...] = field(default=())
     # sliced verification (verify/sliced.py): per blocking group its subsystems and whether
     # its slice can get stuck for good (a deadlock of the slice; None: not decided)
     groups: tuple[tuple[tuple[str, ...], bool | None], ...] = field(default=())
@@ -287,6 +293,7 @@ class VerifyReport:
             "peak_memory_bytes": self.peak_memory,
             "groups": [{"subsystems": list(g), "stuck": stuck} for g, stuck in self.groups],
             "conditions": {"new_tracked_cases": self.new_tracked_cases,
+                           "tracked_values": list(self.tracked_values),
                            "free_choices": [c.to_json() for c in self.free_conditions]},
         }
 
@@ -393,12 +400,16 @@ def render_text(report: VerifyReport, max_invariants: int = 20) -> str:
 def _conditions_text(r: VerifyReport) -> list[str]:
     """How the conditions on data were explored: new(x) of the data cases tracked in the
     state; every other condition a free choice, listed."""
-    if not r.new_tracked_cases and not r.free_conditions:
+    if not r.new_tracked_cases and not r.free_conditions and not r.tracked_values:
         return []
     out = ["", "conditions on data:"]
     if r.new_tracked_cases:
         out.append(f"  new(x): tracked in the state; {r.new_tracked_cases} data case(s) fire "
                    "only when the receives allow them")
+    if r.tracked_values:
+        out.append(f"  values tracked in the state ({len(r.tracked_values)}): "
+                   f"{', '.join(r.tracked_values)}")
+        out.append(f"  {VALUES_ASSUMPTION}")
     if r.free_conditions:
         out.append(f"  abstracted as free choices (every outcome explored): "
                    f"{len(r.free_conditions)}")

@@ -256,6 +256,7 @@ def _combine(net: FlatNet, groups: Sequence[tuple[str, ...]],
         peak_memory=max(budget.peak, budget.resident()),
         new_tracked_cases=sum(r.new_tracked_cases for r in reports),
         free_conditions=tuple(free.values()),
+        tracked_values=tuple(sorted({v for r in reports for v in r.tracked_values})),
         groups=tuple((tuple(sorted(sl.keep)), True if r.deadlocks else (
             False if r.deadlock_free else None)) for sl, r in parts),
     )

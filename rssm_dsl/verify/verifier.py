@@ -45,6 +45,7 @@ import dataclasses
 import time
 from collections.abc import Collection
 from dataclasses import dataclass
+from typing import TYPE_CHECKING
 
 from rssm_dsl.hpn.flat import FlatNet, FlatTransition
 from rssm_dsl.verify.budget import Budget
@@ -65,6 +66,10 @@ from rssm_dsl.verify.sliced import verify_sliced
 from rssm_dsl.verify.slicing import blocking_groups
 from rssm_dsl.verify.statespace import Graph, ProgressCallback, SearchResult, Trace, explore_full
 from rssm_dsl.verify.stubborn import explore_reduced
+from rssm_dsl.verify.valuenet import track_values
+
+if TYPE_CHECKING:
+    from rssm_dsl.verify.dataplan import ValuePlan
 
 REDUCTIONS = ("auto", "on", "off", "compositional")
 SMALL_NET = 400        # places: below, the minimal semiflows are always enumerated
@@ -91,6 +96,9 @@ class VerifyOptions:
     slicing: bool = True                 # "auto": blocking groups verified one by one (sliced)
     slice_after_states: int = 200_000    # ... when the whole net has more states than this
     slice_after_seconds: float = 0.75    # ... or takes longer to explore
+    values: ValuePlan | None = None      # the finite values to track (dataplan.value_plan)
+    values_first: bool = True            # ... only once the conditions as free choices
+    #                                      gave a violation (verify_with_values)
 
     def __post_init__(self) -> None:
         if self.reduction not in REDUCTIONS:
@@ -100,6 +108,8 @@ class VerifyOptions:
 
 def verify(net: FlatNet, options: VerifyOptions | None = None) -> VerifyReport:
     opts = options or VerifyOptions()
+    if opts.values is not None and opts.values_first:
+        return _abstraction_first(net, opts)
     if opts.slicing and opts.reduction == "auto":
         groups = blocking_groups(net)
         if len(groups) > 1:
@@ -127,9 +137,11 @@ def verify(net: FlatNet, options: VerifyOptions | None = None) -> VerifyReport:
             return dataclasses.replace(whole, notes=(
                 f"sliced verification left the verdict open ({sliced.why_undecided}); "
                 "the whole net was verified instead", *whole.notes))
-    tracked = track_new(net)      # new(x) in the net's places (datanet.py), told back in net's
+    # new(x) and the finite values in the net's places (datanet.py, valuenet.py), the report
+    # told back in net's words
+    tracked = track_values(track_new(net), opts.values)
     if tracked.changed:
-        return tracked.report(verify(tracked.net, opts))
+        return tracked.report(verify(tracked.net, dataclasses.replace(opts, values=None)))
     opts = options or VerifyOptions()
     start = time.monotonic()
     budget = opts.budget if opts.budget is not None else Budget(opts.time_limit, opts.max_memory)
@@ -215,6 +227,29 @@ def verify(net: FlatNet, options: VerifyOptions | None = None) -> VerifyReport:
         max_memory=budget.max_memory,
         peak_memory=max(budget.peak, budget.resident()),
     )
+
+
+def _abstraction_first(net: FlatNet, opts: VerifyOptions) -> VerifyReport:
+    """The finite values tracked only where they matter: the conditions as free choices
+    first (an over-approximation: what it proves holds), and when that finds a violation,
+    which the data may rule out, again with the values tracked (datanet.py, valuenet.py)."""
+    assert opts.values is not None
+    budget = opts.budget if opts.budget is not None else Budget(opts.time_limit,
+                                                                opts.max_memory)
+    abstract = verify(net, dataclasses.replace(opts, values=None, budget=budget))
+    if (abstract.verdict is not Verdict.VIOLATED or budget.stop is not None
+            or not track_values(track_new(net), opts.values).values):
+        return abstract
+    concrete = verify(net, dataclasses.replace(opts, values_first=False, budget=budget))
+    if concrete.verdict is Verdict.VIOLATED:
+        why = "confirmed with the values tracked"
+    elif concrete.verdict is Verdict.INCONCLUSIVE:
+        why = "it may be ruled out by the data: with the values tracked the verdict is open"
+    else:
+        why = "the data rules it out (it is not possible with the values tracked)"
+    return dataclasses.replace(concrete, notes=(
+        f"with the conditions as free choices a violation was found; {why}",
+        *concrete.notes))
 
 
 def _why_undecided(budget: Budget,

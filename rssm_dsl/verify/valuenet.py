@@ -1,0 +1,260 @@
+"""Finite values tracked in the net the verifier explores (DESIGN.md section 5), after new(x)
+(rssm_dsl/verify/datanet.py) and in the same way: the values become places and the
+transitions that read or write them are split into variants, so that every engine (full and
+stubborn-set search, the compositional check, progress, slices, SPIN) explores only the runs
+the data allows, with no change of its own.
+
+The encoding, for each tracked value ``x`` with domain D (rssm_dsl/verify/dataplan.py says
+which are tracked and what each transition does with them):
+
+* one place ``p^d[x=d]`` per d in D, exactly one marked (a place invariant), initially the
+  declared initial value;
+* a transition that reads ``x`` (its :class:`~rssm_dsl.verify.dataplan.Step`) has one variant
+  per value of what it reads, which takes and puts back the place of that value (a read arc);
+  a guarded transition keeps only the variants whose guard holds or is unknown;
+* a transition that writes ``x`` takes the place of the old value and marks the place of the
+  new one; a written value that is unknown (computed from a float, an external operation...)
+  gives one variant per value of D.
+
+Which values are tracked in a given net (a slice has only some subsystems): the values of the
+subsystems the net has, and a channel's slot only when every transition that fills the
+channel is one of its producer's sends (a slice's environment fills a border channel with
+anything). A transition with more than ``MAX_VALUATIONS`` variants leaves the largest of its
+values untracked.
+
+Back to the flat net: the variants keep the ``origin`` of the transition they split and the
+value places have none, as new(x)'s, so counterexamples name the flat net's own steps.
+"""
+
+from __future__ import annotations
+
+import dataclasses
+import itertools
+from collections.abc import Mapping
+from typing import Any
+
+from rssm_dsl.hpn.flat import FlatNet, FlatPlace, FlatTransition
+from rssm_dsl.verify.datanet import TrackedNet
+from rssm_dsl.verify.dataplan import ANY, MAX_VALUATIONS, Outcome, Step, ValuePlan, valuations
+from rssm_dsl.verify.slicing import channels
+
+
+def valued(name: str, i: int) -> str:
+    """The name of a variant: ``t[1,c,w,4]`` -> ``t^d[1,c,w,4,3]``."""
+    head, _, rest = name.partition("[")
+    return f"{head}^d[{rest.removesuffix(']')},{i}]" if rest else f"{head}^d[{i}]"
+
+
+def _fork_step(plan: ValuePlan, name: str, known: tuple[bool | None, ...] | None,
+               inputs: int) -> Step:
+    make = plan.forks[name]
+    combo = known if known is not None else (None,) * inputs
+    free = [k for k, v in enumerate(combo) if v is None]
+    if not free:
+        return make(tuple(bool(v) for v in combo))
+    steps = []
+    for bits in itertools.product((True, False), repeat=len(free)):
+        fill = dict(zip(free, bits, strict=True))
+        steps.append(make(tuple(fill[k] if v is None else bool(v)
+                                for k, v in enumerate(combo))))
+    reads = tuple(sorted({r for s in steps for r in s.reads}))
+
+    def run(values: Mapping[str, Any]) -> list[Outcome]:
+        return [o for s in steps for o in s.run(values)]
+    return Step(reads, steps[0].writes, run)
+
+
+class _Values:
+    def __init__(self, t: TrackedNet, plan: ValuePlan) -> None:
+        self.t, self.plan = t, plan
+        net = t.net
+        inputs = dict(t.source.new_sites.inputs)
+        self.steps: dict[int, Step] = {}
+        for u in net.transitions:
+            name = t.source.transitions[t.origin[u.index]].name
+            if name in plan.forks:
+                self.steps[u.index] = _fork_step(plan, name, t.combinations.get(u.name),
+                                                 len(inputs.get(u.subsystem or "", ())))
+            elif name in plan.steps:
+                self.steps[u.index] = plan.steps[name]
+
+    def present(self) -> set[str]:
+        """The values this net can track: its subsystems', and the slots only its
+        producers' sends fill."""
+        t, plan = self.t, self.plan
+        subs = {p.subsystem for p in t.net.places if p.subsystem is not None}
+        out = {k for k, s in plan.subsystem_of.items() if s is not None and s in subs}
+        full = {c.name: c.full for c in channels(t.source)}
+        rule, transitions = t.source.rule, t.source.transitions
+        for slot, chan in plan.channel_of.items():
+            writers = plan.slot_writers.get(slot, frozenset())
+            if chan in full and {transitions[x].name
+                                 for x in rule.producers[full[chan]]} <= writers:
+                out.add(slot)
+        return out
+
+    def cone(self, present: set[str]) -> set[str]:
+        """The values the guards depend on, directly or through what is computed from them."""
+        want = {r for s in self.steps.values() if s.holds is not None for r in s.reads
+                if r in present}
+        writers: dict[str, list[Step]] = {}
+        for s in self.steps.values():
+            for w in s.writes:
+                writers.setdefault(w, []).append(s)
+        todo = list(want)
+        while todo:
+            x = todo.pop()
+            for s in writers.get(x, []):
+                for r in s.reads:
+                    if r in present and r not in want:
+                        want.add(r)
+                        todo.append(r)
+        # a value nothing writes... is still read; a value with a writer outside the plan
+        # (e.g. an untracked producer) is written by none of the steps: it stays constant,
+        # which is exact only when no transition outside the plan changes it (true by
+        # construction: every change of a variable is a step of the plan)
+        doms = self.plan.vars
+        while True:
+            over = [s for s in self.steps.values() if _size(s, want, doms) > MAX_VALUATIONS]
+            if not over:
+                break
+            s = over[0]
+            drop = max((x for x in (*s.reads, *s.writes) if x in want),
+                       key=lambda x: len(doms[x].domain))
+            want.discard(drop)
+        return self._determined(want, writers)
+
+    def _determined(self, want: set[str], writers: dict[str, list[Step]]) -> set[str]:
+        """Without the values that every write leaves unknown (fed by a device, computed
+        from floats...): tracking them would only multiply the states."""
+        doms = self.plan.vars
+        while True:
+            free = {x for x in want if writers.get(x) and not any(
+                _determines(s, x, want, doms) for s in writers[x])}
+            if not free:
+                return want
+            want -= free
+
+
+def _determines(s: Step, x: str, want: set[str], doms: Mapping[str, Any]) -> bool:
+    """Some values of what ``s`` reads make it write a known value into ``x``."""
+    keys = [r for r in s.reads if r in want]
+    domains = {k: doms[k].domain for k in keys}
+    return any(o.get(x, ANY) is not ANY for val in valuations(keys, domains)
+               for o in s.run(val))
+
+
+def _size(s: Step, want: set[str], doms: Mapping[str, Any]) -> int:
+    n = 1
+    for x in {*s.reads, *s.writes} & want:
+        n *= len(doms[x].domain)
+    return n
+
+
+def track_values(t: TrackedNet, plan: ValuePlan | None) -> TrackedNet:
+    """``t`` with the values of ``plan`` in its places (the module docstring); ``t`` itself
+    when no guard depends on a value this net can track."""
+    if plan is None:
+        return t
+    v = _Values(t, plan)
+    cone = v.cone(v.present())
+    if not cone:
+        return t
+    net = t.net
+    places: list[FlatPlace] = list(net.places)
+    place_origin: list[int | None] = list(t.place_origin)
+    initial = set(net.initial)
+    at: dict[tuple[str, Any], int] = {}
+    for key in sorted(cone):
+        var = plan.vars[key]
+        sub = plan.subsystem_of[key]
+        page = next((pg.id for pg in net.pages if pg.kind == "subsystem" and pg.owner == sub),
+                    None)
+        for d in var.domain:
+            i = len(places)
+            name = f"p^d[{key}={d}]"
+            places.append(FlatPlace(i, name, f"{var.label} = {_show(d)}", var.span, (name,),
+                                    subsystem=None, channel=f"value {key}", page=page))
+            place_origin.append(None)
+            at[key, d] = i
+            if type(d) is type(var.initial) and d == var.initial:
+                initial.add(i)
+    transitions: list[FlatTransition] = []
+    origin: list[int] = []
+    decided: set[int] = set()        # source transitions whose guard the values decide
+    for u in net.transitions:
+        s = v.steps.get(u.index)
+        variants = _variants(u, s, cone, plan, at) if s is not None else None
+        if variants is None:
+            variants = [(u.name, u.pre, u.post)]
+        elif s is not None and s.holds is not None and _decides(s, cone, plan):
+            decided.add(t.origin[u.index])
+        for name, pre, post in variants:
+            transitions.append(dataclasses.replace(
+                u, index=len(transitions), name=name, pre=tuple(sorted(set(pre))),
+                post=tuple(sorted(set(post)))))
+            origin.append(t.origin[u.index])
+    out = FlatNet(net.system, tuple(places), tuple(transitions), frozenset(initial),
+                  net.final, net.subsystems, net.pages)
+    tracked = (*t.tracked, *(c for c in t.free if c.transition in decided))
+    free = tuple(c for c in t.free if c.transition not in decided)
+    combos: dict[str, tuple[bool | None, ...]] = {}   # forks renamed: nothing reads them now
+    return TrackedNet(out, t.source, tuple(origin), tuple(place_origin), tracked, free, combos,
+                      tuple(sorted(plan.vars[k].label for k in cone)))
+
+
+def _show(d: Any) -> str:
+    return str(d).lower() if isinstance(d, bool) else str(d)
+
+
+def _decides(s: Step, cone: set[str], plan: ValuePlan) -> bool:
+    """The guard's value is known for every value of what it reads."""
+    assert s.holds is not None
+    keys = [r for r in s.reads if r in cone]
+    if len(keys) < len(s.reads):
+        return False
+    doms = {k: plan.vars[k].domain for k in keys}
+    return all(s.holds(val) is not None for val in valuations(keys, doms))
+
+
+def _variants(u: FlatTransition, s: Step, cone: set[str], plan: ValuePlan,
+              at: Mapping[tuple[str, Any], int]
+              ) -> list[tuple[str, tuple[int, ...], tuple[int, ...]]] | None:
+    reads = [r for r in s.reads if r in cone]
+    writes = [w for w in s.writes if w in cone]
+    if not reads and not writes:
+        return None
+    keys = [*reads, *(w for w in writes if w not in reads)]
+    doms = {k: plan.vars[k].domain for k in keys}
+    out: list[tuple[str, tuple[int, ...], tuple[int, ...]]] = []
+    cache: dict[tuple[Any, ...], list[Outcome]] = {}
+    for val in valuations(keys, doms):
+        rkey = tuple(val[r] for r in reads)
+        outcomes = cache.get(rkey)
+        if outcomes is None:
+            outcomes = cache[rkey] = s.run({r: val[r] for r in reads})
+        pre = tuple(at[k, val[k]] for k in keys)
+        seen: set[tuple[int, ...]] = set()
+        for o in outcomes:
+            choices = [_values_of(o.get(w, val[w]), plan.vars[w].domain, val[w])
+                       for w in writes]
+            for new in itertools.product(*choices):
+                after = dict(val)
+                after.update(zip(writes, new, strict=True))
+                post = tuple(at[k, after[k]] for k in keys)
+                if post in seen:
+                    continue
+                seen.add(post)
+                out.append((valued(u.name, len(out) + 1), (*u.pre, *pre), (*u.post, *post)))
+    return out
+
+
+def _values_of(v: Any, domain: tuple[Any, ...], old: Any) -> tuple[Any, ...]:
+    """The values an outcome may give a variable: its own when it is one of the domain's,
+    else (unknown, or outside the domain) any."""
+    if v is ANY:
+        return domain
+    for d in domain:
+        if type(d) is type(v) and d == v:
+            return (d,)
+    return domain
