@@ -31,7 +31,7 @@ from typing import Any
 
 ROOT = Path(__file__).resolve().parent.parent
 SPECS = [ROOT / "examples" / "verify" / f"{name}.rssm"
-         for name in ("handover_buggy", "handover", "rover", "palletizer")]
+         for name in ("handover_buggy", "handover", "rover", "palletizer", "lockstep")]
 INTENDED = re.compile(r"Expected verdict of `rssmc verify`:\s*([A-Z]+)")
 GRACE = 60.0        # seconds past --limit before the process is killed
 
