@@ -44,7 +44,7 @@ from rssm_dsl.interp.initial import InitialValues
 from rssm_dsl.pipeline import Compilation
 from rssm_dsl.semantics.model import Buffer, Condition, Subsystem, System, Variable
 from rssm_dsl.semantics.typecheck import Symbol, owner_symbols
-from rssm_dsl.semantics.types import BOOL, Type
+from rssm_dsl.semantics.types import BOOL, finite_domain
 from rssm_dsl.source import Span
 from rssm_dsl.syntax import ast
 from rssm_dsl.syntax.walk import names
@@ -116,10 +116,7 @@ class ValuePlan:
     slot_writers: dict[str, frozenset[str]]  # slot key -> the transitions that mark its full
     subsystem_of: dict[str, str | None]     # var key -> its subsystem (None: a slot)
     channel_of: dict[str, str] = field(default_factory=dict)   # slot key -> channel id
-
-
-def finite_domain(t: Type) -> tuple[Any, ...] | None:   # until types.py has it
-    return (False, True) if t == BOOL else None
+    system: System | None = None            # the model (its properties: userprops.py)
 
 
 def _guard_outcomes(holds: Callable[[Mapping[str, Any]], bool | None]
@@ -239,7 +236,7 @@ class _Planner:
         self._guards()
         return ValuePlan(self.vars, self.steps, self.forks, self.free_forks,
                          {k: frozenset(v) for k, v in self.slot_writers.items()},
-                         self.subsystem_of, self.channel_of)
+                         self.subsystem_of, self.channel_of, self.system)
 
     def _copies(self) -> None:
         """Sends copy an output into the channel's slot, receives the slot into an input."""

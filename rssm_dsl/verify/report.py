@@ -142,6 +142,34 @@ def _transition_json(t: FlatTransition) -> dict[str, Any]:
 
 
 @dataclass(frozen=True)
+class PropertyResult:
+    """A property stated in the spec (verify/userprops.py): whether it holds (None: not
+    decided), why, and for a violation the firing sequence to a state that violates it."""
+
+    name: str
+    kind: str                      # "always" | "response"
+    text: str                      # the property in the spec's words
+    holds: bool | None
+    counterexample: Counterexample | None
+    why: str
+    span: Span
+
+    def lines(self) -> list[str]:
+        word = {True: "holds", False: "VIOLATED", None: "not decided"}[self.holds]
+        out = [f"  {self.name} ({self.span.location}): {word}: {self.text}",
+               f"    {self.why}"]
+        if self.counterexample is not None:
+            out += self.counterexample.lines()
+        return out
+
+    def to_json(self) -> dict[str, Any]:
+        return {"name": self.name, "kind": self.kind, "text": self.text, "holds": self.holds,
+                "why": self.why, "file": self.span.file, "line": self.span.line,
+                "counterexample": self.counterexample.to_json()
+                if self.counterexample is not None else None}
+
+
+@dataclass(frozen=True)
 class InvariantLine:
     text: str                      # "p + q + 2*r = 1" in place labels
     tokens: int
@@ -212,6 +240,8 @@ class VerifyReport:
     free_conditions: tuple[FreeCondition, ...] = field(default=())
     # the finite values tracked in the state (valuenet.py), in the user's words
     tracked_values: tuple[str, ...] = field(default=())
+    # the properties stated in the spec (userprops.py)
+    user_properties: tuple[PropertyResult, ...] = field(default=())
     # sliced verification (verify/sliced.py): per blocking group its subsystems and whether
     # its slice can get stuck for good (a deadlock of the slice; None: not decided)
     groups: tuple[tuple[tuple[str, ...], bool | None], ...] = field(default=())
@@ -292,6 +322,7 @@ class VerifyReport:
             "limits": {"time_seconds": self.time_limit, "memory_bytes": self.max_memory},
             "peak_memory_bytes": self.peak_memory,
             "groups": [{"subsystems": list(g), "stuck": stuck} for g, stuck in self.groups],
+            "user_properties": [p.to_json() for p in self.user_properties],
             "conditions": {"new_tracked_cases": self.new_tracked_cases,
                            "tracked_values": list(self.tracked_values),
                            "free_choices": [c.to_json() for c in self.free_conditions]},
@@ -393,6 +424,11 @@ def render_text(report: VerifyReport, max_invariants: int = 20) -> str:
         out.append("")
         out.append("unreachable behaviours:")
         out += [f"  {b}" for b in r.unreachable_behaviours]
+    if r.user_properties:
+        out.append("")
+        out.append(f"properties stated in the spec ({len(r.user_properties)}):")
+        for prop in r.user_properties:
+            out += prop.lines()
     out += _conditions_text(r)
     return "\n".join(out) + "\n"
 

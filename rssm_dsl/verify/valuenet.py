@@ -93,10 +93,11 @@ class _Values:
                 out.add(slot)
         return out
 
-    def cone(self, present: set[str]) -> set[str]:
-        """The values the guards depend on, directly or through what is computed from them."""
+    def cone(self, present: set[str], extra: frozenset[str] = frozenset()) -> set[str]:
+        """The values the guards (and ``extra``) depend on, directly or through what is
+        computed from them."""
         want = {r for s in self.steps.values() if s.holds is not None for r in s.reads
-                if r in present}
+                if r in present} | (extra & present)
         writers: dict[str, list[Step]] = {}
         for s in self.steps.values():
             for w in s.writes:
@@ -151,13 +152,15 @@ def _size(s: Step, want: set[str], doms: Mapping[str, Any]) -> int:
     return n
 
 
-def track_values(t: TrackedNet, plan: ValuePlan | None) -> TrackedNet:
-    """``t`` with the values of ``plan`` in its places (the module docstring); ``t`` itself
-    when no guard depends on a value this net can track."""
+def track_values(t: TrackedNet, plan: ValuePlan | None,
+                 extra: frozenset[str] = frozenset()) -> TrackedNet:
+    """``t`` with the values of ``plan`` in its places (the module docstring), and the
+    values ``extra`` (keys of ``plan.vars``: those a property reads); ``t`` itself when no
+    guard depends on a value this net can track."""
     if plan is None:
         return t
     v = _Values(t, plan)
-    cone = v.cone(v.present())
+    cone = v.cone(v.present(), extra)
     if not cone:
         return t
     net = t.net

@@ -109,7 +109,9 @@ class VerifyOptions:
 def verify(net: FlatNet, options: VerifyOptions | None = None) -> VerifyReport:
     opts = options or VerifyOptions()
     if opts.values is not None and opts.values_first:
-        return _abstraction_first(net, opts)
+        if opts.budget is None:
+            opts = dataclasses.replace(opts, budget=Budget(opts.time_limit, opts.max_memory))
+        return _with_properties(net, opts, _abstraction_first(net, opts))
     if opts.slicing and opts.reduction == "auto":
         groups = blocking_groups(net)
         if len(groups) > 1:
@@ -227,6 +229,27 @@ def verify(net: FlatNet, options: VerifyOptions | None = None) -> VerifyReport:
         max_memory=budget.max_memory,
         peak_memory=max(budget.peak, budget.resident()),
     )
+
+
+def _with_properties(net: FlatNet, opts: VerifyOptions, report: VerifyReport) -> VerifyReport:
+    """The report with the properties stated in the spec checked (userprops.py): a violated
+    one makes the verdict VIOLATED, one not decided leaves a verification open."""
+    from rssm_dsl.verify.userprops import check_properties
+
+    system = opts.values.system if opts.values is not None else None
+    if system is None or not system.properties:
+        return report
+    assert opts.budget is not None
+    results = check_properties(net, system, opts.values, opts.budget, opts.max_states)
+    verdict, why = report.verdict, report.why_undecided
+    if any(r.holds is False for r in results):
+        verdict = Verdict.VIOLATED
+    elif any(r.holds is None for r in results) and verdict in (
+            Verdict.VERIFIED, Verdict.VERIFIED_WITHOUT_PROGRESS):
+        verdict = Verdict.INCONCLUSIVE
+        why = next(f"property {r.name}: {r.why}" for r in results if r.holds is None)
+    return dataclasses.replace(report, verdict=verdict, why_undecided=why,
+                               user_properties=results, stop=opts.budget.stop)
 
 
 def _abstraction_first(net: FlatNet, opts: VerifyOptions) -> VerifyReport:

@@ -137,3 +137,40 @@ def test_spin_agrees_with_values_tracked_and_without(tmp_path: Path) -> None:
     without = run_spin(net, timeout=120)
     assert with_values.ran and with_values.complete and not with_values.deadlock
     assert without.ran and without.deadlock
+
+
+# ---------------------------------------------------------------- properties stated in the spec
+
+PROPERTIES = {
+    # the property added to lockstep.rssm: does it hold (None: not decided)
+    "always cell.c.x == cell.c.m": True,
+    "whenever robot.c in p eventually robot.c in q": True,
+    # the cell may switch to `a` before the robot has left `q`
+    "always not (cell.c in a and robot.c in q)": False,
+    "always not (cell.c in b)": False,
+    "whenever robot.c in p eventually cell.c in b": True,
+    # a float is not tracked: never reported as holding
+    "always robot.c.seen < 1.0": None,
+}
+
+
+@pytest.mark.parametrize("text", sorted(PROPERTIES))
+def test_user_property_verdicts(text: str, tmp_path: Path) -> None:
+    comp = _compile(tmp_path, (("  property flag_is_memory: always cell.c.x == cell.c.m",
+                                f"  property checked: {text}"),
+                               ("  property alternates: whenever robot.c in p eventually "
+                                "robot.c in q", "")))
+    net, plan = _plan(comp)
+    r = verify(net, VerifyOptions(time_limit=60, values=plan))
+    (result,) = r.user_properties
+    assert result.holds is PROPERTIES[text], result.why
+    expected = {True: Verdict.VERIFIED, False: Verdict.VIOLATED, None: Verdict.INCONCLUSIVE}
+    assert r.verdict is expected[PROPERTIES[text]]
+    if result.holds is False:
+        cx = result.counterexample
+        assert cx is not None and cx.steps
+        if "robot.c in q" in text:       # the state reached has both where the property says
+            assert any(m.startswith("cell.c (a)") or m.startswith("cell.c behaviour a")
+                       for m in cx.marking), cx.marking
+            assert any(m.startswith("robot.c (q)") or m.startswith("robot.c behaviour q")
+                       for m in cx.marking), cx.marking

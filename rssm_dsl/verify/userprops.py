@@ -1,0 +1,217 @@
+"""The properties stated in the spec (`property NAME: always P`, `property NAME: whenever P
+eventually Q`; docs/language.md, "Properties"), checked on the reachable states.
+
+Where: the blocking groups (slicing.py) of the subsystems a property mentions, on their slice
+(the whole net when they are all of it), with new(x) and the values the property and the
+conditions read tracked (datanet.py, valuenet.py). The slice can do all its group can do in
+the whole net, and the group's moves replay in the whole net with the rest standing still
+(the argument the progress check rests on), so a property of the group's subsystems holds in
+the whole net when it holds in the slice; a violation found in the slice is replayed in the
+whole net before it is reported.
+
+What: the states are explored whole (breadth first) and each property's atoms are read from
+every state: `SUB in BEH` is true when a place of BEH's page of SUB is marked, `SUB.NAME` is
+the value whose place is marked. The expression itself is evaluated by
+:class:`rssm_dsl.semantics.properties.Formula` (the interpreter's compiled code), once per
+distinct combination of atom values.
+
+* `always P` is violated by a reachable state where P is false; the counterexample is the
+  shortest firing sequence to it.
+* `whenever P eventually Q` is read as the progress check reads "completes another
+  iteration" (report.PROGRESS_ASSUMPTION, strong fairness): it is violated by a reachable
+  state where P holds and from which no continuation reaches a state where Q holds; the
+  counterexample is the shortest firing sequence to it.
+
+A state where the property reads a value the verifier does not track (a float...) leaves the
+property undecided there: it is reported as not decided, never as holding.
+"""
+
+from __future__ import annotations
+
+from collections.abc import Sequence
+from dataclasses import dataclass
+from typing import Any
+
+import numpy as np
+
+from rssm_dsl.hpn.flat import FlatNet
+from rssm_dsl.semantics.model import Property, System
+from rssm_dsl.semantics.properties import Formula, InBehaviour, UnknownValue, Value
+from rssm_dsl.verify.budget import Budget
+from rssm_dsl.verify.datanet import track_new
+from rssm_dsl.verify.dataplan import ValuePlan
+from rssm_dsl.verify.netbits import NetBits
+from rssm_dsl.verify.progress import backward_closure
+from rssm_dsl.verify.report import Counterexample, PropertyResult, marking_labels
+from rssm_dsl.verify.slicing import ReplayError, blocking_groups, replay_group, slice_net
+from rssm_dsl.verify.statespace import Graph, explore_full
+from rssm_dsl.verify.valuenet import track_values
+
+
+@dataclass
+class _Where:
+    """The net a property is checked on and how its states read the atoms."""
+
+    net: FlatNet                      # the explored (tracked) net
+    graph: Graph
+    to_flat: Any                      # TrackedNet: steps back to the (sliced) flat net
+    slice: Any | None                 # Slice, or None for the whole net
+
+
+def check_properties(net: FlatNet, system: System, plan: ValuePlan | None,
+                     budget: Budget, max_states: int) -> tuple[PropertyResult, ...]:
+    """Every property of ``system`` checked on ``net`` (the module docstring)."""
+    out: list[PropertyResult] = []
+    groups = blocking_groups(net)
+    for prop in system.properties:
+        if budget.stop is not None:
+            out.append(PropertyResult(prop.name, prop.kind, _text(prop), None, None,
+                                      f"not checked: {budget.stop.message}", prop.span))
+            continue
+        try:
+            out.append(_check(net, prop, system, plan, groups, budget, max_states))
+        except UnknownValue as e:     # pragma: no cover - caught per state below
+            out.append(PropertyResult(prop.name, prop.kind, _text(prop), None, None, str(e),
+                                      prop.span))
+    return tuple(out)
+
+
+def _text(prop: Property) -> str:
+    from rssm_dsl.syntax.printer import expr_text
+
+    if prop.kind == "always":
+        assert prop.condition is not None
+        return f"always {expr_text(prop.condition)}"
+    assert prop.trigger is not None and prop.goal is not None
+    return f"whenever {expr_text(prop.trigger)} eventually {expr_text(prop.goal)}"
+
+
+def _check(net: FlatNet, prop: Property, system: System, plan: ValuePlan | None,
+           groups: Sequence[tuple[str, ...]], budget: Budget, max_states: int
+           ) -> PropertyResult:
+    formulas = [Formula(system, e) for e in prop.expressions]
+    atoms = [a for f in formulas for a in f.atoms]
+    mentioned = {a.subsystem_id for a in atoms}
+    keep = sorted({s for g in groups if mentioned & set(g) for s in g})
+    sl = slice_net(net, keep) if set(keep) != set(net.subsystems) and keep else None
+    base = sl.net if sl is not None else net
+    keys = frozenset(f"{a.subsystem_id}.{a.variable_name}" for a in atoms
+                     if isinstance(a, Value))
+    tracked = track_values(track_new(base), plan, keys)
+    result = explore_full(NetBits.of(tracked.net), max_states=max_states, keep_graph=True,
+                          max_counterexamples=1, budget=budget)
+    where = "the whole net" if sl is None else f"the slice of {', '.join(keep)}"
+    if not result.complete or result.graph is None:
+        why = result.stopped or "the exploration stopped"
+        return PropertyResult(prop.name, prop.kind, _text(prop), None, None,
+                              f"not decided: {why} ({result.states:,} states of {where})",
+                              prop.span)
+    graph = result.graph
+    truth = [_truth(f, graph, tracked.net) for f in formulas]
+    if prop.kind == "always":
+        bad = ~truth[0][0]
+        unknown = truth[0][1]
+    else:
+        (p, pu), (q, qu) = truth
+        reach_q = backward_closure(graph, q & ~qu, budget=budget)
+        bad = p & ~pu & ~reach_q & ~qu
+        unknown = (pu | qu) & ~reach_q
+    bad &= ~unknown
+    states = f"{graph.size:,} states of {where}"
+    if bad.any():
+        state = int(np.flatnonzero(bad)[0])
+        steps = tracked.steps(tracked.net.transitions[t] for t in graph.path(state))
+        try:
+            cx = _lift(net, sl, steps, prop)
+        except ReplayError as e:
+            return PropertyResult(prop.name, prop.kind, _text(prop), None, None,
+                                  f"not decided: a violation found in {where} was not "
+                                  f"reproduced in the whole net ({e})", prop.span)
+        return PropertyResult(prop.name, prop.kind, _text(prop), False, cx,
+                              f"violated ({states})", prop.span)
+    if unknown.any():
+        return PropertyResult(prop.name, prop.kind, _text(prop), None, None,
+                              f"not decided: it reads a value the verifier does not track "
+                              f"in {int(unknown.sum()):,} of {states}", prop.span)
+    return PropertyResult(prop.name, prop.kind, _text(prop), True, None, f"holds ({states})",
+                          prop.span)
+
+
+def _lift(net: FlatNet, sl: Any, steps: Sequence[Any], prop: Property) -> Counterexample:
+    if sl is None:
+        marking = set(net.initial)
+        for t in steps:
+            marking -= set(t.pre)
+            marking |= set(t.post)
+        return Counterexample("property", tuple(steps), marking_labels(net, frozenset(marking)),
+                              subsystem=prop.name)
+    fired, m = replay_group(sl, sl.whole_steps(steps))
+    return Counterexample("property", tuple(net.transitions[t] for t in fired),
+                          marking_labels(net, m), subsystem=prop.name)
+
+
+def _truth(f: Formula, graph: Graph, net: FlatNet) -> tuple[Any, Any]:
+    """Per state: the formula's value, and whether it is unknown there (bool arrays)."""
+    n = graph.size
+    columns: list[Any] = []
+    getters: list[Any] = []
+    for a in f.atoms:
+        if isinstance(a, InBehaviour):
+            places = [p.index for p in net.places if p.subsystem == a.subsystem_id
+                      and p.behaviour == a.behaviour]
+            columns.append(_any_marked(graph, places).astype(np.int64))
+            getters.append(("in", a))
+        else:
+            key = f"value {a.subsystem_id}.{a.variable_name}"
+            vals = [(p.index, p.label.rpartition(" = ")[2]) for p in net.places
+                    if p.channel == key]
+            col = np.full(n, -1, dtype=np.int64)
+            for i, (place, _) in enumerate(vals):
+                col[_any_marked(graph, [place])] = i
+            columns.append(col)
+            getters.append(("value", a, _domain_of(a, [v for _, v in vals])))
+    if not columns:
+        value = _evaluate(f, (), getters)
+        return np.full(n, value is True), np.full(n, value is None)
+    table = np.stack(columns, axis=1)
+    combos, inverse = np.unique(table, axis=0, return_inverse=True)
+    results = [_evaluate(f, tuple(int(x) for x in row), getters) for row in combos]
+    value = np.array([r is True for r in results])[inverse.reshape(-1)]
+    unknown = np.array([r is None for r in results])[inverse.reshape(-1)]
+    return value, unknown
+
+
+def _domain_of(a: Value, labels: list[str]) -> tuple[Any, ...]:
+    from rssm_dsl.semantics.types import finite_domain
+
+    dom = finite_domain(a.type) or ()
+    shown = {(str(d).lower() if isinstance(d, bool) else str(d)): d for d in dom}
+    return tuple(shown[x] for x in labels if x in shown)
+
+
+def _evaluate(f: Formula, row: tuple[int, ...], getters: list[Any]) -> bool | None:
+    ins: dict[tuple[str, str], bool] = {}
+    vals: dict[tuple[str, str], Any] = {}
+    for x, g in zip(row, getters, strict=True):
+        if g[0] == "in":
+            ins[g[1].subsystem_id, g[1].behaviour] = bool(x)
+        elif x >= 0:
+            vals[g[1].subsystem_id, g[1].variable_name] = g[2][x]
+
+    def value(sub: str, name: str) -> Any:
+        return vals[sub, name]          # KeyError (a LookupError): not tracked
+
+    try:
+        return f(lambda s, b: ins.get((s, b), False), value)
+    except UnknownValue:
+        return None
+    except Exception:
+        return None
+
+
+def _any_marked(graph: Graph, places: Sequence[int]) -> Any:
+    """Per state: is one of ``places`` marked."""
+    mask = np.zeros(graph.states.shape[1], dtype=np.uint64)
+    for p in places:
+        mask[p // 64] |= np.uint64(1 << (p % 64))
+    return (graph.states & mask).any(axis=1)
