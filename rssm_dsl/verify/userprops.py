@@ -171,8 +171,8 @@ def _truth(f: Formula, graph: Graph, net: FlatNet) -> tuple[Any, Any]:
             columns.append(col)
             getters.append(("value", a, _domain_of(a, [v for _, v in vals])))
     if not columns:
-        value = _evaluate(f, (), getters)
-        return np.full(n, value is True), np.full(n, value is None)
+        constant = _evaluate(f, (), getters)
+        return np.full(n, constant is True), np.full(n, constant is None)
     table = np.stack(columns, axis=1)
     combos, inverse = np.unique(table, axis=0, return_inverse=True)
     results = [_evaluate(f, tuple(int(x) for x in row), getters) for row in combos]
