@@ -13,9 +13,20 @@ Representation:
 | ``bool``           | ``bool``                                              |
 | ``int``            | ``int``, a signed 64-bit integer                      |
 | ``float``          | ``float`` (IEEE 754 double)                           |
+| ``enum E {...}``   | ``str``, the member's name (``"grasp"``)              |
+| ``lo..hi``         | ``int``, with ``lo <= value <= hi``                   |
 | ``float[N]``       | read-only ``numpy.ndarray``, dtype float64, shape (N,) |
 | any other ``T[N]`` | ``tuple`` of N values                                 |
 | ``record R {...}`` | ``dict`` field name -> value, exactly the declared fields |
+
+An enum value is its member's name, so traces and JSON show names. A range value is checked
+whenever it is stored (an assignment, an initial value, a field of a record literal, an
+argument of an external operation): the code :mod:`rssm_dsl.pycode` writes calls
+:func:`in_range` (or :func:`check_ranges` for arrays of ranges) where a value of a wider type
+is stored into a range, and a value outside fails with E802 ("value 4 is outside 0..3 of
+retries"); a range value read is an ordinary int. At the boundary with Python code
+(:func:`converter`) an enum takes only a member's name, a range only an int inside it (E803
+otherwise).
 
 Values are never changed in place: replacing a field or an element builds a new value, so
 buffers, channel slots and memory may share values safely.
@@ -33,7 +44,8 @@ Arithmetic (docs/language.md, "Operators"):
   function outside its domain (``sqrt(-1.0)``, ``log(0.0)``, ``floor(inf)``) fails (E802).
 
 A type is described by a *descriptor*, a nested tuple: ``("bool",)``, ``("int",)``,
-``("float",)``, ``("array", ELEMENT, N)``, ``("record", NAME, ((FIELD, DESCRIPTOR), ...))``.
+``("float",)``, ``("enum", NAME, (MEMBER, ...))``, ``("range", LO, HI)``,
+``("array", ELEMENT, N)``, ``("record", NAME, ((FIELD, DESCRIPTOR), ...))``.
 
 Failures raise :class:`OperationError` with the code (E802 an operation failed, E803 Python
 code returned a value that does not fit its declared type) and ``where``: the place in the
@@ -85,8 +97,10 @@ def type_text(d: Desc) -> str:
     """The type of a descriptor as the specification writes it (``float[3]``, ``Pose``)."""
     if d[0] == "array":
         return f"{type_text(d[1])}[{d[2]}]"
-    if d[0] == "record":
+    if d[0] in ("record", "enum"):
         return str(d[1])
+    if d[0] == "range":
+        return f"{d[1]}..{d[2]}"
     return str(d[0])
 
 
@@ -137,6 +151,10 @@ def default(d: Desc) -> Any:
         return 0
     if kind == "float":
         return 0.0
+    if kind == "enum":
+        return d[2][0]                   # the first member
+    if kind == "range":
+        return min(max(0, d[1]), d[2])   # 0, or the bound nearest to it
     if kind == "array":
         if d[1] == FLOAT:
             return freeze(np.zeros(d[2], dtype=np.float64))
@@ -159,9 +177,36 @@ def converter(d: Desc) -> Convert:
         return _to_int
     if kind == "bool":
         return _to_bool
+    if kind == "enum":
+        return _enum(d)
+    if kind == "range":
+        return _range(d)
     if kind == "array":
         return _float_array(d) if d[1] == FLOAT else _array(d)
     return _record(d)
+
+
+def _enum(d: Desc) -> Convert:
+    members = frozenset(d[2])
+
+    def to_member(v: Any) -> str:
+        if type(v) is not str or v not in members:
+            raise ValueTypeError(d, v, f"(members: {', '.join(d[2])})")
+        return v
+    return to_member
+
+
+def _range(d: Desc) -> Convert:
+    lo, hi = d[1], d[2]
+
+    def to_bounded(v: Any) -> int:
+        if isinstance(v, bool | np.bool_) or not isinstance(v, int | np.integer):
+            raise ValueTypeError(d, v)
+        i = int(v)
+        if not lo <= i <= hi:
+            raise ValueTypeError(d, v, f"(outside {lo}..{hi})")
+        return i
+    return to_bounded
 
 
 def _to_float(v: Any) -> float:
@@ -386,6 +431,29 @@ def fmax(x: float, y: float) -> float:
 def fclamp(x: float, lo: float, hi: float) -> float:
     """``min(max(x, lo), hi)`` for floats, NaN when any is NaN."""
     return fmin(fmax(x, lo), hi)
+
+
+def in_range(x: int, lo: int, hi: int, what: str | None, where: Any) -> int:
+    """``x`` stored into the range ``lo..hi`` (of ``what``, for the message)."""
+    if lo <= x <= hi:
+        return x
+    of = f" of {what}" if what else ""
+    raise _fail(where, f"value {x} is outside {lo}..{hi}{of}")
+
+
+def check_ranges(v: Any, d: Desc, what: str | None, where: Any, path: str = "") -> Any:
+    """``v`` stored where a value of descriptor ``d`` is expected, every range in it checked
+    (an array of ints stored into an array of ranges)."""
+    kind = d[0]
+    if kind == "range":
+        return in_range(v, d[1], d[2], f"{what or ''}{path}" or None, where)
+    if kind == "array" and d[1] != FLOAT:
+        for k, x in enumerate(v):
+            check_ranges(x, d[1], what, where, f"{path}[{k}]")
+    elif kind == "record":
+        for name, fd in d[2]:
+            check_ranges(v[name], fd, what, where, f"{path}.{name}")
+    return v
 
 
 def index(a: Any, i: int, size: int, floats: bool, where: Any) -> Any:

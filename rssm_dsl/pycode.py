@@ -6,7 +6,10 @@ variables) and the generated ROS 2 nodes (rssm_dsl.ros2.nodecode writes it into 
 modules). The code calls the semantics core, rssm_core.values (imported as ``_rt``), for
 every operation whose meaning is not plain Python: int arithmetic (64-bit, overflow fails),
 division and remainder (checked for zero), float min/max/clamp (NaN propagates), indexing,
-array arithmetic, external operations (their results checked against the declared type).
+array arithmetic, external operations (their results checked against the declared type),
+the check of a value stored into a range type (``_rt.in_range``: an int assigned to a
+memory variable of type ``0..3`` fails there when it lies outside). An enum member
+``Phase.grasp`` is the string literal ``'grasp'``.
 Static types come from the front end's ExprChecker, so every int-to-float widening the
 language allows is a conversion written at the place it happens.
 
@@ -29,7 +32,19 @@ from dataclasses import dataclass, field
 from rssm_dsl.diagnostics import DiagnosticBag
 from rssm_dsl.semantics.model import Extern
 from rssm_dsl.semantics.typecheck import BUILTIN_CONSTS, ExprChecker, Scope, Symbol
-from rssm_dsl.semantics.types import BOOL, FLOAT, INT, ArrayT, RecordT, Scalar, Type, descriptor
+from rssm_dsl.semantics.types import (
+    BOOL,
+    FLOAT,
+    INT,
+    ArrayT,
+    EnumT,
+    RangeT,
+    RecordT,
+    Scalar,
+    Type,
+    descriptor,
+    is_int,
+)
 from rssm_dsl.source import Span
 from rssm_dsl.syntax import ast
 from rssm_dsl.syntax.printer import expr_text
@@ -78,6 +93,16 @@ def comment(text: str) -> str:
 def tuple_source(items: list[str] | tuple[str, ...]) -> str:
     """A tuple display of items given as Python source: (), (a,), (a, b)."""
     return "(" + ", ".join(items) + ("," if len(items) == 1 else "") + ")"
+
+
+def narrows(src: Type, dst: Type) -> bool:
+    """Must a value of type ``src`` be checked when stored as a ``dst``? (An int, or a wider
+    range, stored into a range; arrays of them element-wise.)"""
+    if isinstance(dst, RangeT):
+        return not (isinstance(src, RangeT) and dst.lo <= src.lo and src.hi <= dst.hi)
+    if isinstance(dst, ArrayT) and isinstance(src, ArrayT):
+        return narrows(src.element, dst.element)
+    return False
 
 
 def descriptor_source(t: Type) -> str:
@@ -141,17 +166,33 @@ class PyGen:
                                  f"{expr_text(e)}")
         return t
 
-    def coerce(self, code: str, src: Type, dst: Type) -> str:
+    def coerce(self, code: str, src: Type, dst: Type, span: Span | None = None,
+               what: str | None = None) -> str:
+        """``code`` (of type ``src``) as a ``dst``; a value stored into a range is checked
+        (``what`` names the place in the failure's message, ``span`` is where it fails)."""
         if src == dst:
             return code
-        if src == INT and dst == FLOAT:
+        if narrows(src, dst):
+            assert span is not None, f"a range check without a site: {src} -> {dst}"
+            site = self.site(span)
+            if isinstance(dst, RangeT):
+                return f"_rt.in_range({code}, {dst.lo}, {dst.hi}, {what!r}, {site})"
+            return f"_rt.check_ranges({code}, {self.types.desc(dst)}, {what!r}, {site})"
+        if is_int(src) and is_int(dst):
+            return code           # a range read as an int: the same value
+        if is_int(src) and dst == FLOAT:
             return f"float({code})"
+        if isinstance(src, ArrayT) and isinstance(dst, ArrayT) and dst.element != FLOAT \
+                and is_int(src.element) and is_int(dst.element):
+            return code           # tuples of ints either way
         return f"{self.types.converter(dst)}({code})"
 
     # ------------------------------------------------------------------ expressions
-    def expr(self, e: ast.Expr, expected: Type | None = None) -> str:
+    def expr(self, e: ast.Expr, expected: Type | None = None, what: str | None = None) -> str:
+        """The code of ``e``; with ``expected``, converted to that type (and checked when it
+        is stored into a range: ``what`` names the place for the failure's message)."""
         code, t = self._expr(e, expected)
-        return self.coerce(code, t, expected) if expected is not None else code
+        return self.coerce(code, t, expected, e.span, what) if expected is not None else code
 
     def _expr(self, e: ast.Expr, expected: Type | None = None) -> tuple[str, Type]:
         t = self.type_of(e, expected)
@@ -161,6 +202,8 @@ class PyGen:
             case ast.Name():
                 return self._name(e), t
             case ast.FieldAccess():
+                if isinstance(t, EnumT) and self._enum_name(e.value):
+                    return repr(e.field), t          # a member: Phase.grasp
                 return f"{self.expr(e.value)}[{e.field!r}]", t
             case ast.Index():
                 return self._index(e), t
@@ -179,11 +222,19 @@ class PyGen:
                 return self._array(e, t), t
             case ast.RecordLit():
                 assert isinstance(t, RecordT)
-                ft = {n: self.expr(v, t.field(n)) for n, v in e.fields}
+                ft = {n: self.expr(v, t.field(n), f"{t.name}.{n}") for n, v in e.fields}
                 return "{" + ", ".join(f"{n!r}: {c}" for n, c in ft.items()) + "}", t
             case ast.Call():
                 return self._call(e, t), t
         raise AssertionError(e)
+
+    def _enum_name(self, e: ast.Expr) -> bool:
+        """Is ``e`` the name of an enum type (the base of a member, ``Phase`` in
+        ``Phase.grasp``)?"""
+        if not isinstance(e, ast.Name) or e.name in self.locals:
+            return False
+        sym = self.extra_symbols.get(e.name) or self.symbols.get(e.name)
+        return sym is not None and sym.kind == "enum"
 
     def _name(self, e: ast.Name) -> str:
         name = e.name
@@ -234,7 +285,7 @@ class PyGen:
         lt, rt = self.type_of(e.left), self.type_of(e.right)
         a, b = self.expr(e.left), self.expr(e.right)
         if op in ("==", "!="):
-            if isinstance(lt, Scalar) and isinstance(rt, Scalar):
+            if isinstance(lt, Scalar | EnumT | RangeT) and isinstance(rt, Scalar | EnumT | RangeT):
                 return f"({a} {op} {b})"
             return f"_rt.equal({a}, {b})" if op == "==" else f"(not _rt.equal({a}, {b}))"
         if op in ("<", "<=", ">", ">="):
@@ -264,7 +315,8 @@ class PyGen:
         ext = self.externs.get(e.function)
         if ext is not None:
             self.externs_used.add(ext.name)
-            args = [self.expr(a, pt) for a, (_, pt) in zip(e.args, ext.params, strict=True)]
+            args = [self.expr(a, pt, f"argument '{pn}' of {ext.name}()")
+                    for a, (pn, pt) in zip(e.args, ext.params, strict=True)]
             conv = self.types.converter(ext.result)
             rest = "".join(", " + a for a in args)
             return (f"_rt.call({extern(ext.name)}, {conv}, {ext.name!r}, {self.site(e.span)}"
@@ -323,7 +375,7 @@ class PyGen:
 
     def _assign(self, s: ast.Assign, lines: list[str]) -> str:
         tt = self.type_of(s.target)
-        value = self.expr(s.value, tt)
+        value = self.expr(s.value, tt, expr_text(s.target))
         steps: list[tuple[str, str, int, str]] = []      # (kind, field/index, size, where)
         node: ast.Expr = s.target
         while isinstance(node, ast.FieldAccess | ast.Index):

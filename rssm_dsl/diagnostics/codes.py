@@ -51,6 +51,11 @@ CODES: tuple[Code, ...] = (
     Code("E207", "unknown-field", _E, "a record field that does not exist"),
     Code("E208", "bad-binding", _E, "an external binding is not of the form module:function"),
     Code("E209", "bad-frequency", _E, "a frequency that is not positive"),
+    Code("E210", "empty-enum", _E, "an enum without members"),
+    Code("E211", "duplicate-enum-member", _E, "an enum member declared twice"),
+    Code("E212", "unknown-enum-member", _E, "a member that the enum does not have"),
+    Code("E213", "empty-range", _E, "a range type whose low bound is above its high bound"),
+    Code("E214", "value-out-of-range", _E, "a constant outside the range of the type it is stored in"),
     # structure (paper III-A)
     Code("E301", "control-count", _E, "an agent needs exactly one control subsystem"),
     Code("E302", "link-not-allowed", _E, "a link between subsystems the methodology forbids"),
@@ -86,6 +91,15 @@ CODES: tuple[Code, ...] = (
          "a terminal or error condition used outside the switches of its behaviour"),
     Code("E609", "no-behaviours", _E, "a subsystem without behaviours"),
     Code("E610", "duplicate-arrangement", _E, "two send or two receive declarations in a behaviour"),
+    # properties (the verifier's user-stated properties)
+    Code("E620", "property-unknown-subsystem", _E, "a property names a subsystem the system does not have"),
+    Code("E621", "property-unknown-behaviour", _E, "a property names a behaviour its subsystem does not have"),
+    Code("E622", "property-unknown-variable", _E, "a property reads a variable its subsystem does not have"),
+    Code("E623", "property-not-bool", _E, "a property's condition is not a bool"),
+    Code("E624", "duplicate-property", _E, "two properties with the same name"),
+    Code("E625", "misplaced-behaviour-test", _E, "`SUBSYSTEM in BEHAVIOUR` outside a property"),
+    Code("W626", "property-value-abstracted", _W,
+         "a property reads a value with no finite domain, which the verifier abstracts"),
     # usage warnings
     Code("W701", "unused-buffer", _W, "an input buffer never read or an output buffer never written"),
     Code("W702", "unused-memory", _W, "a memory variable never read"),

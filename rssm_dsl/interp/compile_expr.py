@@ -121,10 +121,11 @@ class ExprCompiler:
         return self.ns.pop(name)
 
     # ------------------------------------------------------------------ expressions
-    def expr(self, e: ast.Expr, expected: Type | None = None) -> Fn:
-        """The function of ``e``; with ``expected``, its value converted to that type."""
+    def expr(self, e: ast.Expr, expected: Type | None = None, what: str | None = None) -> Fn:
+        """The function of ``e``; with ``expected``, its value converted to that type (and
+        checked when that is a range; ``what`` names the variable in the failure)."""
         gen = self._gen()
-        code = gen.expr(e, expected)
+        code = gen.expr(e, expected, what)
         fn: Fn = self._compile(gen, "env", [f"return {code}"])
         return fn
 

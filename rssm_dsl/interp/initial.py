@@ -14,7 +14,7 @@ from rssm_dsl.interp.compile_expr import ExprCompiler
 from rssm_dsl.interp.errors import EvalError
 from rssm_dsl.interp.values import default_value
 from rssm_dsl.semantics.model import Device, Subsystem, System, Variable
-from rssm_dsl.semantics.typecheck import Symbol
+from rssm_dsl.semantics.typecheck import Symbol, enum_symbols
 
 
 class InitialValues:
@@ -25,14 +25,16 @@ class InitialValues:
         self.system = system
         self.diagnostics: list[Diagnostic] = []
         self.consts: dict[str, Any] = {}
-        self.const_symbols: dict[str, Symbol] = {}
+        # the constants' types, and the enum types (whose members expressions name)
+        self.const_symbols: dict[str, Symbol] = enum_symbols(system.types, system.span)
         self.params: dict[tuple[str, str], Any] = {}
         self.memory: dict[tuple[str, str], Any] = {}
         self.buffers: dict[tuple[str, str], Any] = {}
         self._envs: dict[str, dict[str, Any]] = {}
         try:
             for c in system.consts:
-                fn = ExprCompiler(self.const_symbols, {}, self.consts).expr(c.value, c.type)
+                fn = ExprCompiler(self.const_symbols, {}, self.consts).expr(c.value, c.type,
+                                                                            c.name)
                 self.consts[c.name] = fn({})
                 self.const_symbols[c.name] = Symbol("const", c.type, c.span)
         except EvalError as e:
@@ -50,14 +52,16 @@ class InitialValues:
         try:
             for p in owner.params:
                 assert p.init is not None
-                env[p.name] = ExprCompiler(symbols, {}, self.consts).expr(p.init, p.type)(env)
+                env[p.name] = ExprCompiler(symbols, {}, self.consts).expr(p.init, p.type,
+                                                                          p.name)(env)
                 symbols[p.name] = Symbol("param", p.type, p.span)
                 self.params[owner.id, p.name] = env[p.name]
             for table, variables in ((self.memory, memory),
                                      (self.buffers, (*owner.inputs, *owner.outputs))):
                 for v in variables:
                     env[v.name] = table[owner.id, v.name] = (
-                        ExprCompiler(symbols, {}, self.consts).expr(v.init, v.type)(env)
+                        ExprCompiler(symbols, {}, self.consts).expr(v.init, v.type,
+                                                                    v.name)(env)
                         if v.init is not None else default_value(v.type))
         except EvalError as e:
             self.diagnostics.append(e.diagnostic())

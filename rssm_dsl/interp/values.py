@@ -8,6 +8,8 @@
 | ``bool``             | ``bool``                                                 |
 | ``int``              | ``int`` (64-bit)                                         |
 | ``float``            | ``float``                                                |
+| ``enum E {...}``     | ``str``, the member's name                               |
+| ``lo..hi``           | ``int`` inside the range                                 |
 | ``float[N]``         | read-only ``numpy.ndarray``, dtype float64, shape (N,)   |
 | any other ``T[N]``   | ``tuple`` of N values of T                               |
 | ``record R {...}``   | ``dict`` field name -> value, exactly the declared fields |

@@ -1,6 +1,8 @@
 """Completion: keywords and the names in scope at the cursor, narrowed by the word before it
 (`from`/`to` -> peers, `:` -> types, `initial`/`->` -> behaviours, `update` -> outputs and
-memory, `send`/`receive` -> buffers, `new(` -> inputs)."""
+memory, `send`/`receive` -> buffers, `new(` -> inputs, `Phase.` -> the members of the enum
+Phase; in a property, `AGENT.SUB in` -> the
+behaviours of SUB, `AGENT.` -> its subsystems, `AGENT.SUB.` -> the variables of SUB)."""
 
 from __future__ import annotations
 
@@ -77,6 +79,9 @@ def complete(module: ast.Module | None, index: SymbolIndex, text: str,
     before = re.sub(r"[A-Za-z_][A-Za-z0-9_]*$", "", text[line_start:offset]).rstrip()
     m = _TRIGGER.search(before)
     trigger = m.group(1) if m else ""
+    members = _enum_members(index, before) if trigger == "." else None
+    if members:
+        return members
     system, agent, sub, behaviour = _enclosing(module, text, offset)
     items: list[lsp.CompletionItem] = []
     if sub is not None and agent is not None and system is not None:
@@ -84,6 +89,11 @@ def complete(module: ast.Module | None, index: SymbolIndex, text: str,
         if narrowed is not None:
             return narrowed
         items += _local(module, index, offset, sub, behaviour)
+    elif system is not None and agent is None:     # between the agents: a property
+        narrowed = _property(trigger, before, system)
+        if narrowed is not None:
+            return narrowed
+        items += [_item(a.name, CK.Module, "agent", "1") for a in system.agents]
     type_only = trigger == ":"
     items += _global(index, type_only)
     if type_only:
@@ -101,6 +111,17 @@ def complete(module: ast.Module | None, index: SymbolIndex, text: str,
             seen.add(it.label)
             unique.append(it)
     return unique
+
+
+def _enum_members(index: SymbolIndex, before: str) -> list[lsp.CompletionItem] | None:
+    """After `Phase.`: the members of the enum Phase (None when the name is no enum)."""
+    m = re.search(r"([A-Za-z_][A-Za-z0-9_]*)\s*\.$", before)
+    if m is None:
+        return None
+    enum = index.definitions.get(f"type:{m.group(1)}")
+    if enum is None or enum.kind != "enum":
+        return None
+    return [_item(d.name, CK.EnumMember, d.detail, "1") for d in index.children(enum.key)]
 
 
 def _narrowed(trigger: str, before: str, system: ast.SystemDecl, agent: ast.AgentDecl,
@@ -123,6 +144,55 @@ def _narrowed(trigger: str, before: str, system: ast.SystemDecl, agent: ast.Agen
     if trigger == "receive" or (trigger == "(" and before.endswith("new(")):
         return [_item(i, CK.Field, "input buffer", "1") for i in inputs]
     return None
+
+
+_SUBJECT = re.compile(r"([A-Za-z_][A-Za-z0-9_]*)\s*\.\s*([A-Za-z_][A-Za-z0-9_]*)\s+in$")
+_DOTTED = re.compile(r"(?<![A-Za-z0-9_.])([A-Za-z_][A-Za-z0-9_]*)"
+                     r"(?:\s*\.\s*([A-Za-z_][A-Za-z0-9_]*))?\s*\.$")
+
+
+def _property_subsystem(system: ast.SystemDecl, agent: str, name: str
+                        ) -> ast.SubsystemDecl | None:
+    a = next((x for x in system.agents if x.name == agent), None)
+    if a is None:
+        return None
+    if name == "c":
+        control = next((s for s in a.subsystems if s.kind is ast.SubsystemKind.CONTROL), None)
+        if control is not None:
+            return control
+    return next((s for s in a.subsystems if s.name == name), None)
+
+
+def _property(trigger: str, before: str, system: ast.SystemDecl
+              ) -> list[lsp.CompletionItem] | None:
+    """In a property: the behaviours after `AGENT.SUB in`, the subsystems after `AGENT.`,
+    the variables after `AGENT.SUB.` (None: anything)."""
+    if trigger == "in":
+        m = _SUBJECT.search(before)
+        sub = _property_subsystem(system, m.group(1), m.group(2)) if m else None
+        if sub is None:
+            return None
+        return [_item(b.name, CK.Method, "behaviour", "1") for b in sub.behaviours]
+    if trigger != ".":
+        return None
+    m = _DOTTED.search(before)
+    if m is None:
+        return None
+    if m.group(2) is None:
+        agent = next((a for a in system.agents if a.name == m.group(1)), None)
+        if agent is None:
+            return None
+        return [_item("c" if s.kind is ast.SubsystemKind.CONTROL else s.name, CK.Class,
+                      f"{s.kind.value} subsystem", "1") for s in agent.subsystems]
+    sub = _property_subsystem(system, m.group(1), m.group(2))
+    if sub is None:
+        return None
+    from rssm_dsl.lsp.index import _type_text
+    out = [_item(v.name, CK.Variable, f"memory: {_type_text(v.type)}", "1") for v in sub.memory]
+    out += [_item(b.name, CK.Field, f"{b.direction.value}: {_type_text(b.type)}", "1")
+            for b in sub.buffers]
+    out += [_item(p.name, CK.Constant, f"param: {_type_text(p.type)}", "2") for p in sub.params]
+    return out
 
 
 def _local(module: ast.Module | None, index: SymbolIndex, offset: int, sub: ast.SubsystemDecl,

@@ -10,7 +10,7 @@ from rssm_dsl.hpn import names as N
 from rssm_dsl.lsp.index import Definition
 from rssm_dsl.semantics.behaviours import combination_text
 from rssm_dsl.semantics.model import Agent, Buffer, Channel, Device, Subsystem, System
-from rssm_dsl.semantics.types import RecordT, Type
+from rssm_dsl.semantics.types import EnumT, RecordT, Type
 from rssm_dsl.syntax import ast
 
 _LETTER_TEXT = {"c": "control subsystem", "e": "virtual effector", "r": "virtual receptor",
@@ -25,6 +25,8 @@ def _type(t: Type) -> str:
     if isinstance(t, RecordT):
         fields = ", ".join(f"{n}: {ft}" for n, ft in t.fields)
         return f"`{t.name}` = record {{{fields}}}"
+    if isinstance(t, EnumT):
+        return f"`{t.name}` = enum {{{', '.join(t.members)}}}"
     return f"`{t}`"
 
 
@@ -245,11 +247,51 @@ def _condition_lines(m: _Model, prefix: str, base: str, update: _Update) -> list
     return _condition(m, s, tail[0], tail[1]) if s is not None and len(tail) == 2 else []
 
 
+def _property_lines(m: _Model, prefix: str, base: str, update: _Update) -> list[str]:
+    from rssm_dsl.semantics.properties import InBehaviour, PropertyError, atoms, written
+    from rssm_dsl.semantics.types import finite_domain
+
+    p = next((x for x in m.system.properties if x.name == base), None)
+    if p is None:
+        return []
+    if p.kind == "always":
+        out = ["**always**: a state invariant; the verifier checks that the condition holds "
+               "in every reachable state"]
+    else:
+        out = ["**whenever ... eventually ...**: a response property; every reachable state "
+               "where the trigger holds is followed, now or later, by one where the goal holds"]
+    items: list[str] = []
+    abstracted: list[str] = []
+    try:
+        found = [a for e in p.expressions for a in atoms(m.system, e)]
+    except PropertyError:
+        found = []
+    for a in found:
+        sub = m.subs.get(a.subsystem_id)
+        if sub is None:
+            continue
+        if isinstance(a, InBehaviour):
+            page = N.page(m.j[sub.id], sub.name, a.behaviour, sup="^B")
+            text = f"`{written(m.system, sub.id)} in {a.behaviour}` (page `{page}`)"
+        else:
+            text = f"`{written(m.system, sub.id)}.{a.variable_name}` ({a.kind}, {a.type})"
+            if finite_domain(a.type) is None:
+                abstracted.append(f"`{written(m.system, sub.id)}.{a.variable_name}`")
+        if text not in items:
+            items.append(text)
+    if items:
+        out.append("atoms: " + ", ".join(items))
+    if abstracted:
+        out.append("abstracted by the verifier (no finite domain): "
+                   + ", ".join(dict.fromkeys(abstracted)))
+    return out
+
+
 # the definitions inside a system (key prefix -> the lines about them in the HPN)
 _IN_SYSTEM: dict[str, Callable[[_Model, str, str, _Update], list[str]]] = {
     "agent": _agent_lines, "sub": _subsystem_lines, "inst": _device_lines,
     "buf": _buffer_lines, "mem": _variable_lines, "param": _variable_lines,
-    "beh": _behaviour_lines, "cond": _condition_lines,
+    "beh": _behaviour_lines, "cond": _condition_lines, "prop": _property_lines,
 }
 
 

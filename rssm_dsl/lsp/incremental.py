@@ -174,7 +174,7 @@ def reparse(state: State, text: str, display: str,
     broken = tuple(x for x in state.broken if x[0] is not replaced)
     if result.diagnostics:
         broken += ((frame.agents[0], result.diagnostics),)
-    system = ast.SystemDecl(sd.span, sd.name, sd.name_span, tuple(agents))
+    system = dataclasses.replace(sd, agents=tuple(agents))   # the properties are kept
     module = ast.Module(state.module.span, state.module.path, state.module.imports,
                         tuple(system if d is sd else d for d in state.module.decls))
     new_shifts = shifts.after_edit(old_end, d_chars, d_lines).with_file(pseudo)

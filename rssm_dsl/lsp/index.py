@@ -4,17 +4,19 @@ works while the text has errors; go to definition, find references, rename, comp
 hover read it.
 
 Keys are global: `type:Vec3`, `const:K`, `extern:f`, `device:LWR4Plus`,
-`devbuf:LWR4Plus.torque`, `system:S`, `field:Rec.f`, `module:<display path>`; inside a
+`devbuf:LWR4Plus.torque`, `system:S`, `field:Rec.f`, `member:Phase.idle` (an enum's member),
+`module:<display path>`; inside a
 system, with F|S its file and name (system_id): `agent:F|S/a1`, `sub:F|S/a1.e.lwr`,
 `inst:F|S/a1.E.lwr`, `buf:F|S/a1.e.lwr.setpoint`, `mem:F|S/a1.c.phase`,
-`param:F|S/a1.c.radius`, `beh:F|S/a1.c.cw`, `cond:F|S/a1.c.cw.full_circle`; locals (`let`)
-get a key made of their position. The same declaration seen from two programs has the same
-key.
+`param:F|S/a1.c.radius`, `beh:F|S/a1.c.cw`, `cond:F|S/a1.c.cw.full_circle`,
+`prop:F|S/no_clash`; locals (`let`) get a key made of their position. The same declaration
+seen from two programs has the same key.
 
 Peer references name subsystems and buffers: in `from e.lwr`, `lwr` refers to the virtual
 effector a1.e.lwr; in `to E.lwr.torque`, `lwr` is the device instance and `torque` its
 buffer; in `a2.c`, `a2` is the agent and `c` its control subsystem. `new(x)` refers to the
-input buffer x.
+input buffer x. In a property, `arm.c in release` refers to the agent arm, its control
+subsystem and its behaviour release; `arm.c.waited` to arm, arm.c and its variable waited.
 """
 
 from __future__ import annotations
@@ -148,15 +150,15 @@ def block_close(text: str, name_end: int) -> int:
 
 
 def _type_text(t: ast.TypeExpr) -> str:
-    if isinstance(t, ast.ArrayType):
-        return f"{_type_text(t.element)}[{t.size}]"
-    return t.name
+    from rssm_dsl.syntax.printer import type_text
+    return type_text(t)
 
 
 def _type_names(t: ast.TypeExpr) -> Iterator[ast.NamedType]:
     while isinstance(t, ast.ArrayType):
         t = t.element
-    yield t
+    if isinstance(t, ast.NamedType):
+        yield t
 
 
 def _exprs(e: ast.Expr) -> Iterator[ast.Expr]:
@@ -182,6 +184,8 @@ def _exprs(e: ast.Expr) -> Iterator[ast.Expr]:
                 stack += list(x.items)
             case ast.RecordLit():
                 stack += [v for _, v in x.fields]
+            case ast.InBehaviour():
+                stack.append(x.subject)
 
 
 def _arr_leaves(a: ast.Arrangement) -> Iterator[ast.ArrBuffer]:
@@ -265,6 +269,16 @@ class IndexBuilder:
                 case ast.AliasDecl():
                     self.define(Definition(f"type:{d.name}", d.name, "type alias", d.name_span,
                                            d.span, f"type {d.name} = {_type_text(d.type)}"))
+                case ast.EnumDecl():
+                    key = f"type:{d.name}"
+                    members = ", ".join(m.name for m in d.members)
+                    self.define(Definition(key, d.name, "enum", d.name_span, d.span,
+                                           f"enum {d.name} {{ {members} }}"))
+                    for k, mem in enumerate(d.members):
+                        self.define(Definition(f"member:{d.name}.{mem.name}", mem.name,
+                                               "enum member", mem.span, mem.span,
+                                               f"{d.name}.{mem.name}  // member {k} of "
+                                               f"{len(d.members)}", key))
                 case ast.ConstDecl():
                     from rssm_dsl.syntax.printer import expr_text
                     t = f": {_type_text(d.type)}" if d.type is not None else ""
@@ -296,7 +310,8 @@ class IndexBuilder:
                     self._structure(d)
             name = getattr(d, "name", None)
             if isinstance(name, str) and not isinstance(d, ast.SystemDecl):
-                prefix = {ast.RecordDecl: "type", ast.AliasDecl: "type", ast.ConstDecl: "const",
+                prefix = {ast.RecordDecl: "type", ast.AliasDecl: "type", ast.EnumDecl: "type",
+                          ast.ConstDecl: "const",
                           ast.ExternDecl: "extern", ast.DeviceDecl: "device"}[type(d)]
                 self.globals.setdefault(name, f"{prefix}:{name}")
 
@@ -340,6 +355,11 @@ class IndexBuilder:
                                        f"real {inst.kind.value}", inst.name_span, inst.span,
                                        f"real {inst.kind.value} {inst.name}: {inst.device}",
                                        akey))
+        from rssm_dsl.syntax.printer import property_text
+        for prop in sd.properties:
+            self.define(Definition(f"prop:{system_id(sd)}/{prop.name}", prop.name, "property",
+                                   prop.name_span, prop.span, property_text(prop),
+                                   f"system:{system_id(sd)}"))
 
     # ------------------------------------------------------------------ uses
     def _module(self, m: ast.Module) -> None:
@@ -366,6 +386,9 @@ class IndexBuilder:
                 case ast.SystemDecl():
                     for a in d.agents:
                         self._agent(d, a, src)
+                    for prop in d.properties:
+                        for e in prop.expressions:
+                            self._property_expr(d, e)
 
     def _device(self, d: ast.DeviceDecl) -> None:
         scope = {p.name: f"devparam:{d.name}.{p.name}" for p in d.params}
@@ -430,6 +453,82 @@ class IndexBuilder:
                 key = self.globals.get(x.function)
                 if key is not None and key.startswith("extern:"):
                     self.use(x.function_span, key)
+            elif isinstance(x, ast.FieldAccess) and isinstance(x.value, ast.Name) \
+                    and x.value.name not in scope:
+                self._member(x, x.value)
+
+    def _member(self, x: ast.FieldAccess, base: ast.Name) -> None:
+        """`Phase.grasp`: the enum type and its member."""
+        key = self.globals.get(base.name)
+        member = f"member:{base.name}.{x.field}"
+        if key is None or not key.startswith("type:") or member not in self.index.definitions:
+            return
+        self.use(base.span, key)
+        src = self.source(x.span)
+        if src is not None and x.span.end_offset - len(x.field) >= base.span.end_offset:
+            self.use(src.span(x.span.end_offset - len(x.field), x.span.end_offset), member)
+
+    def _property_expr(self, sd: ast.SystemDecl, e: ast.Expr) -> None:
+        """A property's expression: `AGENT.SUB` names a subsystem, `AGENT.SUB.NAME` one of
+        its variables, `AGENT.SUB in BEH` one of its behaviours; other names are constants."""
+        agents = {a.name: a for a in sd.agents}
+        for x in _exprs(e):
+            if isinstance(x, ast.Name):
+                key = self.globals.get(x.name)
+                if key is not None and key.startswith("const:") and x.name not in agents:
+                    self.use(x.span, key)
+                continue
+            if isinstance(x, ast.InBehaviour):
+                s = self._property_subsystem(sd, agents, x.subject)
+                if s is not None:
+                    skey = subsystem_key(system_id(sd), s[0], s[1])
+                    if any(b.name == x.behaviour for b in s[1].behaviours):
+                        self.use(x.behaviour_span, f"beh:{skey[4:]}.{x.behaviour}")
+                continue
+            if not isinstance(x, ast.FieldAccess):
+                continue
+            s = self._property_subsystem(sd, agents, x.value)
+            if s is None:
+                continue
+            base = subsystem_key(system_id(sd), s[0], s[1])[4:]
+            for prefix, names in (("mem", s[1].memory), ("buf", s[1].buffers),
+                                  ("param", s[1].params)):
+                if any(v.name == x.field for v in names):
+                    span = self._field_span(x)
+                    if span is not None:
+                        self.use(span, f"{prefix}:{base}.{x.field}")
+                    break
+        for x in _exprs(e):
+            if isinstance(x, ast.FieldAccess) and isinstance(x.value, ast.Name):
+                s = self._property_subsystem(sd, agents, x)
+                span = self._field_span(x)
+                if s is not None and span is not None:
+                    self.use(x.value.span, f"agent:{system_id(sd)}/{s[0]}")
+                    self.use(span, subsystem_key(system_id(sd), s[0], s[1]))
+
+    def _property_subsystem(self, sd: ast.SystemDecl, agents: dict[str, ast.AgentDecl],
+                            e: ast.Expr) -> tuple[str, ast.SubsystemDecl] | None:
+        """The subsystem `AGENT.SUB` names in a property: (agent name, its declaration)."""
+        if not (isinstance(e, ast.FieldAccess) and isinstance(e.value, ast.Name)):
+            return None
+        agent = agents.get(e.value.name)
+        if agent is None:
+            return None
+        if e.field == "c":
+            control = next((s for s in agent.subsystems
+                            if s.kind is ast.SubsystemKind.CONTROL), None)
+            if control is not None:
+                return agent.name, control
+        found = next((s for s in agent.subsystems if s.name == e.field), None)
+        return (agent.name, found) if found is not None else None
+
+    def _field_span(self, e: ast.FieldAccess) -> Span | None:
+        """The span of the field name of `x.field` (the last token of the node)."""
+        src = self.source(e.span)
+        end = e.span.end_offset
+        if src is None or src.text[end - len(e.field):end] != e.field:
+            return None
+        return src.span(end - len(e.field), end)
 
     def _agent(self, sd: ast.SystemDecl, a: ast.AgentDecl, src: SourceFile | None) -> None:
         for inst in a.devices:

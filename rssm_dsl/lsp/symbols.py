@@ -1,5 +1,6 @@
-"""Document symbols: the outline of a file (system > agents > subsystems > behaviours, and
-the library declarations), from its AST (a partial one while the text has errors)."""
+"""Document symbols: the outline of a file (system > agents > subsystems > behaviours, the
+system's properties, and the library declarations), from its AST (a partial one while the
+text has errors)."""
 
 from __future__ import annotations
 
@@ -13,9 +14,8 @@ K = lsp.SymbolKind
 
 
 def _type_text(t: ast.TypeExpr) -> str:
-    if isinstance(t, ast.ArrayType):
-        return f"{_type_text(t.element)}[{t.size}]"
-    return t.name
+    from rssm_dsl.syntax.printer import type_text
+    return type_text(t)
 
 
 class _Outline:
@@ -72,8 +72,12 @@ class _Outline:
     def decl(self, d: ast.Decl) -> lsp.DocumentSymbol:
         match d:
             case ast.SystemDecl():
-                return self.sym(d.name, K.Namespace, d.span, d.name_span, "system",
-                                [self.agent(a) for a in d.agents])
+                kids = [self.agent(a) for a in d.agents]
+                kids += [self.sym(p.name, K.Property, p.span, p.name_span,
+                                  "always property" if p.kind == "always"
+                                  else "response property (whenever ... eventually ...)")
+                         for p in d.properties]
+                return self.sym(d.name, K.Namespace, d.span, d.name_span, "system", kids)
             case ast.RecordDecl():
                 fields = [self.sym(f.name, K.Field, f.span, f.span, _type_text(f.type))
                           for f in d.fields]
@@ -81,6 +85,10 @@ class _Outline:
             case ast.AliasDecl():
                 return self.sym(d.name, K.TypeParameter, d.span, d.name_span,
                                 f"type = {_type_text(d.type)}")
+            case ast.EnumDecl():
+                members = [self.sym(m.name, K.EnumMember, m.span, m.span, "member")
+                           for m in d.members]
+                return self.sym(d.name, K.Enum, d.span, d.name_span, "enum", members)
             case ast.ConstDecl():
                 return self.sym(d.name, K.Constant, d.span, d.name_span, "const")
             case ast.ExternDecl():

@@ -70,7 +70,7 @@ def _record_spans(comp: Compilation) -> dict[str, Any]:
     spans = {}
     for module in comp.program.modules:
         for d in module.decls:
-            if isinstance(d, ast.RecordDecl):
+            if isinstance(d, ast.RecordDecl | ast.EnumDecl):
                 spans[d.name] = d.name_span
     return spans
 

@@ -3,10 +3,18 @@
 | RSSM type        | message field type                 | sample message of a channel        |
 |------------------|------------------------------------|------------------------------------|
 | bool/int/float   | bool / int64 / float64             | BoolSample, Int64Sample, Float64Sample |
+| range lo..hi     | int64                              | Int64Sample                         |
+| enum E           | uint8, with a constant per member  | ESample                             |
 | T[N], T scalar   | bool[N] / int64[N] / float64[N]    | Float64Array7Sample, ...            |
 | record R         | message R (CamelCase of the name)  | RSample                             |
 | R[N]             | R[N]                               | RArray4Sample                       |
 | T[N][M]          | TArrayN[M] (see below)             | TArrayNArrayMSample                 |
+
+An enum value travels as its member's position (from 0) in a ``uint8``; every message with
+a field of enum type ``E`` (``Phase``) declares one constant per member, ``uint8
+PHASE_IDLE=0`` (the enum's and the member's names in upper snake case), and the nodes
+convert names to numbers and back at the boundary (runtime/messages.py). A range travels as
+an ``int64`` (it is an int; the producer checked it when it was stored).
 
 ROS 2 arrays do not nest: the inner array of T[N][M] is a wrapper message TArrayN with one
 field ``items``.
@@ -18,11 +26,12 @@ publishes ``SubsystemStatus`` on its diagnostics topic.
 
 from __future__ import annotations
 
+import re
 from dataclasses import dataclass
 
 from rssm_dsl.pycode import tuple_source
 from rssm_dsl.ros2.names import pascal
-from rssm_dsl.semantics.types import ArrayT, RecordT, Scalar, Type
+from rssm_dsl.semantics.types import INT, ArrayT, EnumT, RangeT, RecordT, Scalar, Type
 
 SCALAR_FIELD = {"bool": "bool", "int": "int64", "float": "float64"}
 SCALAR_NAME = {"bool": "Bool", "int": "Int64", "float": "Float64"}
@@ -60,10 +69,54 @@ class MsgField:
 
 
 @dataclass(frozen=True)
+class MsgConstant:
+    type: str
+    name: str
+    value: str
+
+
+@dataclass(frozen=True)
 class MsgView:
     name: str
     comment: str
     fields: tuple[MsgField, ...]
+    constants: tuple[MsgConstant, ...] = ()
+
+
+ENUM_FIELD = "uint8"
+MAX_ENUM_MEMBERS = 256          # what a uint8 holds
+
+
+def upper_snake(name: str) -> str:
+    """``GripPhase`` -> ``GRIP_PHASE``, ``grasp_object`` -> ``GRASP_OBJECT``."""
+    return re.sub(r"(?<=[a-z0-9])(?=[A-Z])", "_", name).upper()
+
+
+def enum_constant(t: EnumT, member: str) -> str:
+    """The message constant of an enum member: ``PHASE_IDLE``."""
+    return f"{upper_snake(t.name)}_{upper_snake(member)}"
+
+
+def enum_constants(t: EnumT) -> tuple[MsgConstant, ...]:
+    return tuple(MsgConstant(ENUM_FIELD, enum_constant(t, m), str(k))
+                 for k, m in enumerate(t.members))
+
+
+def _wire(t: Type) -> Type:
+    """The type a value travels as: a range as an int (arrays element-wise)."""
+    if isinstance(t, RangeT):
+        return INT
+    if isinstance(t, ArrayT):
+        return ArrayT(_wire(t.element), t.size)
+    return t
+
+
+def enums_in(t: Type) -> list[EnumT]:
+    """The enum types of a message field holding a ``t`` (itself or its elements; the fields
+    of a record are the record message's)."""
+    while isinstance(t, ArrayT):
+        t = t.element
+    return [t] if isinstance(t, EnumT) else []
 
 
 class MessageTypes:
@@ -77,8 +130,11 @@ class MessageTypes:
     # ------------------------------------------------------------------ names
     def type_name(self, t: Type) -> str:
         """CamelCase name of a type: Float64, LwrState, Float64Array7, ..."""
+        t = _wire(t)
         if isinstance(t, Scalar):
             return SCALAR_NAME[t.name]
+        if isinstance(t, EnumT):
+            return pascal(t.name)
         if isinstance(t, RecordT):
             name = pascal(t.name)
             if name not in self.records:
@@ -86,14 +142,19 @@ class MessageTypes:
                 for _, ft in t.fields:
                     self.field_type(ft)
             return name
+        assert isinstance(t, ArrayT)
         return f"{self.type_name(t.element)}Array{t.size}"
 
     def field_type(self, t: Type) -> str:
         """The type of a message field holding a value of type ``t``."""
+        t = _wire(t)
         if isinstance(t, Scalar):
             return SCALAR_FIELD[t.name]
+        if isinstance(t, EnumT):
+            return ENUM_FIELD
         if isinstance(t, RecordT):
             return self.type_name(t)
+        assert isinstance(t, ArrayT)
         return f"{self._element(t.element)}[{t.size}]"
 
     def _element(self, t: Type) -> str:
@@ -106,6 +167,7 @@ class MessageTypes:
         return self.field_type(t)
 
     def sample(self, t: Type) -> str:
+        t = _wire(t)
         name = self.type_name(t) + "Sample"
         if name not in self.samples:
             self.samples[name] = t
@@ -118,6 +180,10 @@ class MessageTypes:
         source; ``msg`` is the name under which the node imported the messages."""
         if isinstance(t, Scalar):
             return f"({t.name!r},)"
+        if isinstance(t, EnumT):
+            return repr(("enum", t.name, t.members))
+        if isinstance(t, RangeT):
+            return repr(("range", t.lo, t.hi))
         if isinstance(t, ArrayT):
             wrapper = f"{msg}.{self.type_name(t.element)}" if isinstance(
                 t.element, ArrayT) else "None"
@@ -130,18 +196,29 @@ class MessageTypes:
         out: list[MsgView] = []
         for name, rec in self.records.items():
             out.append(MsgView(name, f"record {rec.name} of the specification",
-                               tuple(MsgField(self.field_type(ft), n) for n, ft in rec.fields)))
+                               tuple(MsgField(self.field_type(ft), n) for n, ft in rec.fields),
+                               self._constants([ft for _, ft in rec.fields])))
         for name, arr in self.wrappers.items():
             out.append(MsgView(name, f"an array {arr} as an element of an array (ROS 2 arrays "
-                               "do not nest)", (MsgField(self.field_type(arr), "items"),)))
+                               "do not nest)", (MsgField(self.field_type(arr), "items"),),
+                               self._constants([arr])))
         for name, t in self.samples.items():
             out.append(MsgView(name, f"one sample of a channel of type {t}", (
                 MsgField("uint32", "epoch", "the producer's epoch (random, drawn at its start)"),
                 MsgField("uint64", "seq", "the producer's sample number, from 1"),
-                MsgField(self.field_type(t), "value"))))
+                MsgField(self.field_type(t), "value")), self._constants([t])))
         out.append(MsgView("Ack", "a consumer took a sample of a blocking producer",
                            tuple(MsgField(*f) for f in ACK_FIELDS)))
         out.append(MsgView("SubsystemStatus", "the diagnostics of a subsystem node",
                            tuple(MsgField(*f) for f in STATUS_FIELDS)))
         return sorted(out, key=lambda m: m.name)
+
+    @staticmethod
+    def _constants(types: list[Type]) -> tuple[MsgConstant, ...]:
+        """The member constants of the enums of a message's fields, each enum once."""
+        seen: dict[str, EnumT] = {}
+        for t in types:
+            for e in enums_in(t):
+                seen.setdefault(e.name, e)
+        return tuple(c for e in seen.values() for c in enum_constants(e))
 

@@ -9,6 +9,7 @@ checked before they reach any template (diagnostic E860).
 | buffer             | topic ``/<agent>/<node>/<buffer>``| ROS name token                       |
 | record             | message ``<Pascal>`` (lwr_state → LwrState) | ``[A-Z][A-Za-z0-9]*``, unique |
 | record field       | message field                     | rosidl's rule, no C++/Python keyword |
+| enum member        | message constant ``PHASE_IDLE``   | rosidl's rule, unique, <= 256 members |
 
 REP 144 and rosidl: ``[a-z][a-z0-9_]*``, no ``__``, no trailing ``_``.
 | binding            | ``module:attribute``              | dotted Python identifiers            |
@@ -25,7 +26,7 @@ import re
 
 from rssm_dsl.diagnostics import Diagnostic
 from rssm_dsl.semantics.model import Agent, Device, Subsystem, System
-from rssm_dsl.semantics.types import ArrayT, RecordT, Type
+from rssm_dsl.semantics.types import ArrayT, EnumT, RecordT, Type
 from rssm_dsl.source import Span
 
 IDENT = re.compile(r"[A-Za-z_][A-Za-z0-9_]*\Z")
@@ -33,6 +34,7 @@ ROS_TOKEN = re.compile(r"[A-Za-z_][A-Za-z0-9_]*\Z")
 PACKAGE = re.compile(r"[a-z][a-z0-9_]*\Z")
 MSG_NAME = re.compile(r"[A-Z][A-Za-z0-9]*\Z")
 MSG_FIELD = re.compile(r"[a-z][a-z0-9_]*\Z")
+MSG_CONSTANT = re.compile(r"[A-Z]([A-Z0-9_]?[A-Z0-9]+)*\Z")   # rosidl's constant names
 
 # Names rosidl's C++ and Python generators cannot take as field names.
 CPP_KEYWORDS = frozenset((
@@ -120,7 +122,30 @@ class NameChecker:
         for k in system.consts:
             self.ident(k.name, "constant", k.span)
         self._records(system, record_spans)
+        self._enums(system, record_spans)
         return self.diagnostics
+
+    def _enums(self, system: System, spans: dict[str, Span]) -> None:
+        from rssm_dsl.ros2.msgtypes import MAX_ENUM_MEMBERS, enum_constant
+        for enum in enums_of(system):
+            span = spans.get(enum.name, system.span)
+            if len(enum.members) > MAX_ENUM_MEMBERS:
+                self.error(f"enum {enum.name} has {len(enum.members)} members; a ROS 2 "
+                           f"message carries at most {MAX_ENUM_MEMBERS} (uint8)", span,
+                           "split the enum")
+            seen: dict[str, str] = {}
+            for member in enum.members:
+                name = enum_constant(enum, member)
+                if not MSG_CONSTANT.match(name):
+                    self.error(f"member '{member}' of enum {enum.name} cannot become ROS 2 "
+                               f"message constant '{name}'", span,
+                               "message constants are upper-case letters, digits and single "
+                               "underscores, not ending in '_'")
+                elif name in seen:
+                    self.error(f"members '{seen[name]}' and '{member}' of enum {enum.name} "
+                               f"both become message constant '{name}'", span,
+                               "rename one of them")
+                seen[name] = member
 
     def _agent(self, agent: Agent, prefix: str, packages: dict[str, str]) -> None:
         self.token(agent.name, "agent", agent.span)
@@ -190,6 +215,30 @@ def records_of(system: System) -> list[RecordT]:
             visit(t.element)
         elif isinstance(t, RecordT) and t.name not in found:
             found[t.name] = t
+            for _, ft in t.fields:
+                visit(ft)
+
+    for sub in system.subsystems():
+        for b in (*sub.inputs, *sub.outputs):
+            visit(b.type)
+    for dev in system.devices():
+        for b in (*dev.inputs, *dev.outputs):
+            visit(b.type)
+    return [found[k] for k in sorted(found)]
+
+
+def enums_of(system: System) -> list[EnumT]:
+    """Every enum type the system's buffers carry (in records and arrays too), by name."""
+    found: dict[str, EnumT] = {}
+    records: set[str] = set()
+
+    def visit(t: Type) -> None:
+        if isinstance(t, ArrayT):
+            visit(t.element)
+        elif isinstance(t, EnumT):
+            found.setdefault(t.name, t)
+        elif isinstance(t, RecordT) and t.name not in records:
+            records.add(t.name)
             for _, ft in t.fields:
                 visit(ft)
 

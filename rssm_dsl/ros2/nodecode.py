@@ -44,7 +44,7 @@ from rssm_dsl.semantics.model import (
     System,
     Variable,
 )
-from rssm_dsl.semantics.typecheck import Symbol, owner_symbols
+from rssm_dsl.semantics.typecheck import Symbol, enum_symbols, owner_symbols
 from rssm_dsl.semantics.types import BOOL, Type
 from rssm_dsl.syntax.printer import expr_text
 
@@ -147,6 +147,8 @@ def literal(value: Any) -> str:
     """Python source of a value of the interpreter's representation (arrays as lists)."""
     if isinstance(value, bool | int | float):
         return number(value)
+    if isinstance(value, str):
+        return repr(value)              # an enum member
     if isinstance(value, np.ndarray):
         return literal(tuple(float(x) for x in value.tolist()))
     if isinstance(value, tuple | list):
@@ -202,10 +204,10 @@ class Context:
 
 def const_lines(system: System, types: TypeTable) -> list[str]:
     lines: list[str] = []
-    symbols: dict[str, Symbol] = {}
+    symbols: dict[str, Symbol] = enum_symbols(system.types, system.span)
     for c in system.consts:
         gen = PyGen(symbols, {}, types)
-        lines.append(f"{const(c.name)} = {gen.expr(c.value, c.type)}")
+        lines.append(f"{const(c.name)} = {gen.expr(c.value, c.type, c.name)}")
         symbols[c.name] = Symbol("const", c.type, c.span)
     return lines
 
@@ -220,7 +222,8 @@ class SubsystemCode:
         self.externs: set[str] = set()
         self.functions: list[tuple[str, ...]] = []
         self.function_names: set[str] = set()
-        consts = {c.name: Symbol("const", c.type, c.span) for c in ctx.system.consts}
+        consts = enum_symbols(ctx.system.types, ctx.system.span)
+        consts.update({c.name: Symbol("const", c.type, c.span) for c in ctx.system.consts})
         self.symbols = owner_symbols(consts, sub.params, sub.memory, (*sub.inputs, *sub.outputs))
 
     def gen(self, special: frozenset[str] = frozenset()) -> PyGen:
@@ -236,7 +239,8 @@ class SubsystemCode:
     def _initial(self) -> list[str]:
         sub = self.sub
         lines = [f"{INDENT}st = State()"]
-        scope = {c.name: Symbol("const", c.type, c.span) for c in self.ctx.system.consts}
+        scope = enum_symbols(self.ctx.system.types, self.ctx.system.span)
+        scope.update({c.name: Symbol("const", c.type, c.span) for c in self.ctx.system.consts})
         for p in sub.params:
             lines.append(f"{INDENT}{var(p.name)} = st.{var(p.name)} = p[{p.name!r}]")
             scope[p.name] = Symbol("param", p.type, p.span)
@@ -244,7 +248,7 @@ class SubsystemCode:
         named: list[tuple[str, Type, Any]] = [(m.name, m.type, m.init) for m in sub.memory]
         named += [(b.name, b.type, b.init) for b in (*sub.inputs, *sub.outputs)]
         for name, t, init in named:
-            value = gen.expr(init, t) if init is not None else \
+            value = gen.expr(init, t, name) if init is not None else \
                 f"_rt.default({self.types.desc(t)})"
             lines.append(f"{INDENT}st.{var(name)} = {value}")
         self._note(gen)

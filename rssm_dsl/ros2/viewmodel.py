@@ -26,7 +26,7 @@ from rssm_dsl.ros2.nodecode import (
 )
 from rssm_dsl.ros2.shipping import Shipment, ship
 from rssm_dsl.semantics.model import System, Variable
-from rssm_dsl.semantics.types import ArrayT, RecordT, Scalar, Type
+from rssm_dsl.semantics.types import ArrayT, EnumT, RangeT, RecordT, Scalar, Type
 
 VERSION = "0.1.0"
 RUNTIME_MODULES = ("messages", "channels", "params", "loop", "subsystem", "device",
@@ -119,10 +119,10 @@ def yaml_scalar(v: Any) -> str:
 
 
 def _param_lines(name: str, t: Type, value: Any, indent: str) -> list[str]:
-    if isinstance(t, Scalar):
+    if isinstance(t, Scalar | EnumT | RangeT):
         return [f"{indent}{name}: {yaml_scalar(value)}"]
     if isinstance(t, ArrayT):
-        if not isinstance(t.element, Scalar):
+        if not isinstance(t.element, Scalar | EnumT | RangeT):
             return [f"{indent}# {name}: an array of {t.element} is not a ROS parameter (the "
                     "specification's value is used)"]
         items = value.tolist() if isinstance(value, np.ndarray) else list(value)

@@ -11,6 +11,7 @@ from rssm_dsl.semantics.checks import CHECKS, CheckContext
 from rssm_dsl.semantics.declarations import DeclarationPass
 from rssm_dsl.semantics.loader import Program
 from rssm_dsl.semantics.model import Agent, Buffer, Device, Subsystem, System
+from rssm_dsl.semantics.properties import check_properties
 from rssm_dsl.semantics.structure import Shell, StructurePass
 from rssm_dsl.syntax import ast
 
@@ -72,7 +73,10 @@ def analyze(program: Program, bag: DiagnosticBag) -> System | None:
     system = System(sysdecl.name, sysdecl.span, tuple(agents), tuple(channels),
                     tuple(g.consts.values()), tuple(g.externs.values()),
                     tuple(sorted(g.types.items())))
-    ctx = CheckContext(bag, system, sub_decls, written, unchecked)
+    property_reads: dict[str, set[str]] = {}
+    properties = check_properties(bag, system, sysdecl.properties, g.symbols(), sub_decls,
+                                  property_reads)
+    ctx = CheckContext(bag, system, sub_decls, written, unchecked, property_reads)
     for check in CHECKS:
         check(ctx)
-    return replace(system)
+    return replace(system, properties=properties)

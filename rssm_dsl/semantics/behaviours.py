@@ -26,6 +26,7 @@ from rssm_dsl.semantics.typecheck import ExprChecker, Scope, Symbol, did_you_mea
 from rssm_dsl.semantics.types import BOOL, Type, assignable
 from rssm_dsl.source import Span
 from rssm_dsl.syntax import ast
+from rssm_dsl.syntax.printer import expr_text
 from rssm_dsl.syntax.walk import names
 
 MAX_INPUTS = 12
@@ -297,6 +298,8 @@ class BehaviourPass:
         if got is not None and not assignable(got, lt):
             self.bag.error("E201", f"cannot assign {got} to '{root.name}' of type {lt}",
                            stmt.value.span)
+        elif got is not None:
+            self.checker.fits(stmt.value, lt, expr_text(stmt.target))
 
     def _index_reads(self, target: ast.Expr, scope: Scope) -> set[str]:
         names: set[str] = set()

@@ -15,7 +15,15 @@ from rssm_dsl.semantics.typecheck import (
     Symbol,
     did_you_mean,
 )
-from rssm_dsl.semantics.types import SCALARS, ArrayT, RecordT, Type, assignable
+from rssm_dsl.semantics.types import (
+    SCALARS,
+    ArrayT,
+    EnumT,
+    RangeT,
+    RecordT,
+    Type,
+    assignable,
+)
 from rssm_dsl.source import Span
 from rssm_dsl.syntax import ast
 
@@ -35,7 +43,9 @@ class Globals:
     broken: dict[str, Symbol] = field(default_factory=dict)
 
     def symbols(self) -> dict[str, Symbol]:
-        out = dict(self.broken)
+        out = {n: Symbol("enum", t, self.spans[n]) for n, t in self.types.items()
+               if isinstance(t, EnumT) and n in self.spans}
+        out.update(self.broken)
         out.update({n: Symbol("const", c.type, c.span) for n, c in self.consts.items()})
         return out
 
@@ -45,7 +55,7 @@ class DeclarationPass:
         self.bag = bag
         self.g = Globals()
         self.checker = ExprChecker(bag)
-        self._type_decls: dict[str, ast.RecordDecl | ast.AliasDecl] = {}
+        self._type_decls: dict[str, ast.RecordDecl | ast.AliasDecl | ast.EnumDecl] = {}
         self._resolving: set[str] = set()
 
     def _declare(self, name: str, span: Span) -> bool:
@@ -62,7 +72,8 @@ class DeclarationPass:
     def run(self, modules: list[ast.Module], root: ast.Module | None) -> Globals:
         decls = [d for m in modules for d in m.decls]
         for d in decls:
-            if isinstance(d, ast.RecordDecl | ast.AliasDecl) and self._declare(d.name, d.name_span):
+            if isinstance(d, ast.RecordDecl | ast.AliasDecl | ast.EnumDecl) and \
+                    self._declare(d.name, d.name_span):
                 self._type_decls[d.name] = d
         for name in list(self._type_decls):
             self._resolve_named(name)
@@ -95,6 +106,13 @@ class DeclarationPass:
                 self.bag.error("E206", "an array needs at least one element", t.span)
                 return None
             return ArrayT(elem, t.size)
+        if isinstance(t, ast.RangeType):
+            if t.lo > t.hi:
+                self.bag.error("E213", f"the range {t.lo}..{t.hi} is empty: its low bound is "
+                               "above its high bound", t.span,
+                               f"write the low bound first: {t.hi}..{t.lo}")
+                return None
+            return RangeT(t.lo, t.hi)
         if t.name in SCALARS:
             return SCALARS[t.name]
         if t.name in self._type_decls:
@@ -120,6 +138,8 @@ class DeclarationPass:
         try:
             if isinstance(decl, ast.AliasDecl):
                 result = self.resolve_type(decl.type)
+            elif isinstance(decl, ast.EnumDecl):
+                result = self._enum(decl)
             else:
                 fields: list[tuple[str, Type]] = []
                 seen: set[str] = set()
@@ -141,6 +161,21 @@ class DeclarationPass:
             self.g.types[name] = result
         return result
 
+    def _enum(self, decl: ast.EnumDecl) -> EnumT | None:
+        if not decl.members:
+            self.bag.error("E210", f"enum '{decl.name}' has no members", decl.name_span,
+                           f"list its values: `enum {decl.name} {{ first, second }}`")
+            return None
+        members: dict[str, Span] = {}
+        for m in decl.members:
+            if m.name in members:
+                self.bag.error("E211", f"member '{m.name}' of enum '{decl.name}' is declared "
+                               "twice", m.span,
+                               related=(Related(members[m.name], "first declared here"),))
+                continue
+            members[m.name] = m.span
+        return EnumT(decl.name, tuple(members))
+
     # ------------------------------------------------------------------ values
     def _const(self, d: ast.ConstDecl) -> None:
         if not self._declare(d.name, d.name_span):
@@ -156,6 +191,8 @@ class DeclarationPass:
                            d.value.span)
             self.g.broken[d.name] = Symbol("const", None, d.name_span)
             return
+        if want is not None:
+            self.checker.fits(d.value, want, f"const '{d.name}'")
         self.g.consts[d.name] = Const(d.name, want or got, d.value, d.span)
 
     def _binding(self, binding: str, span: Span, what: str) -> None:

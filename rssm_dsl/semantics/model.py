@@ -240,6 +240,30 @@ class Agent:
 
 
 @dataclass(frozen=True)
+class Property:
+    """A user-stated property the verifier checks (docs/language.md, Properties).
+
+    ``kind`` "always": ``condition`` holds in every reachable state (a state invariant);
+    "response" (`whenever trigger eventually goal`): every reachable state where ``trigger``
+    holds is followed, now or later, by one where ``goal`` holds. The expressions are as
+    written; rssm_dsl.semantics.properties resolves their atoms (``atoms``) and evaluates
+    them (``Formula``, ``evaluate``)."""
+
+    name: str
+    kind: str                          # "always" | "response"
+    span: Span                         # the declaration
+    name_span: Span
+    condition: ast.Expr | None = None  # always
+    trigger: ast.Expr | None = None    # response
+    goal: ast.Expr | None = None       # response
+
+    @property
+    def expressions(self) -> tuple[ast.Expr, ...]:
+        """The condition, or the trigger and the goal."""
+        return tuple(e for e in (self.condition, self.trigger, self.goal) if e is not None)
+
+
+@dataclass(frozen=True)
 class System:
     name: str
     span: Span
@@ -248,6 +272,7 @@ class System:
     consts: tuple[Const, ...]
     externs: tuple[Extern, ...]
     types: tuple[tuple[str, Type], ...] = field(default=())
+    properties: tuple[Property, ...] = field(default=())
 
     def subsystems(self) -> list[Subsystem]:
         return [s for a in self.agents for s in a.subsystems]

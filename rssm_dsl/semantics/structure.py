@@ -9,7 +9,7 @@ from rssm_dsl.diagnostics import DiagnosticBag, Related
 from rssm_dsl.semantics.declarations import DeclarationPass, Globals
 from rssm_dsl.semantics.model import DEVICE_LETTER, KIND_LETTER, Buffer, Variable
 from rssm_dsl.semantics.typecheck import ExprChecker, Scope, Symbol, did_you_mean
-from rssm_dsl.semantics.types import assignable
+from rssm_dsl.semantics.types import Type, assignable
 from rssm_dsl.source import Span
 from rssm_dsl.syntax import ast
 
@@ -123,11 +123,16 @@ class StructurePass:
         if vt is None:
             return None
         if init is not None:
-            got = self.checker.check(init, scope, vt)
-            if got is not None and not assignable(got, vt):
-                self.bag.error("E201", f"{what} '{name}' is {vt} but its initial value is {got}",
-                               init.span)
+            self._initial(init, scope, vt, f"{what} '{name}'")
         return Variable(name, vt, init, span)
+
+    def _initial(self, init: ast.Expr, scope: Scope, t: Type, what: str) -> None:
+        """Check the initial value of a variable or buffer (``what``: "memory 'x'")."""
+        got = self.checker.check(init, scope, t)
+        if got is not None and not assignable(got, t):
+            self.bag.error("E201", f"{what} is {t} but its initial value is {got}", init.span)
+        elif got is not None:
+            self.checker.fits(init, t, what)
 
     def _frequency(self, f: ast.Frequency | None) -> float | None:
         if f is None:
@@ -178,10 +183,7 @@ class StructurePass:
                 shell.unresolved.append(b)
                 continue
             if b.init is not None:
-                got = self.checker.check(b.init, init_scope, bt)
-                if got is not None and not assignable(got, bt):
-                    self.bag.error("E201", f"buffer '{b.name}' is {bt} but its initial value is "
-                                   f"{got}", b.init.span)
+                self._initial(b.init, init_scope, bt, f"buffer '{b.name}'")
             mode = b.mode or Mode.NONBLOCKING
             shell.buffers.append(Buffer(shell.id, b.name, b.direction, bt, mode, b.init, b.span))
             shell.peers[b.name] = b.peer

@@ -14,11 +14,15 @@ from rssm_dsl.semantics.types import (
     FLOAT,
     INT,
     ArrayT,
+    EnumT,
+    RangeT,
     RecordT,
     Type,
     assignable,
+    is_int,
     is_numeric,
     is_numeric_array,
+    join,
 )
 from rssm_dsl.source import Span
 from rssm_dsl.syntax import ast
@@ -43,7 +47,7 @@ def did_you_mean(name: str, candidates: Iterable[str]) -> str | None:
 
 @dataclass(frozen=True)
 class Symbol:
-    kind: str   # const | extern | param | memory | input | output | local | condition
+    kind: str   # const | extern | param | memory | input | output | local | condition | enum
     type: Type | None  # None: declared, but its type is unknown (an error was reported)
     span: Span
 
@@ -62,6 +66,29 @@ class Declared(Protocol):
 class DeclaredBuffer(Declared, Protocol):
     @property
     def direction(self) -> ast.Direction: ...
+
+
+def enum_symbols(types: Iterable[tuple[str, Type]], span: Span) -> dict[str, Symbol]:
+    """The enum types among ``types`` (``System.types``) as the symbols that let expressions
+    name their members (``Phase.idle``); ``span`` stands for where they are declared."""
+    return {n: Symbol("enum", t, span) for n, t in types if isinstance(t, EnumT)}
+
+
+def constant_int(e: ast.Expr) -> int | None:
+    """The value of an int expression made of literals, unary minus, ``+``, ``-`` and ``*``
+    (None for anything else)."""
+    match e:
+        case ast.Literal(value=int() as v) if not isinstance(v, bool):
+            return v
+        case ast.Unary(op="-", operand=operand):
+            inner = constant_int(operand)
+            return -inner if inner is not None else None
+        case ast.Binary(op="+" | "-" | "*", left=left, right=right):
+            a, b = constant_int(left), constant_int(right)
+            if a is None or b is None:
+                return None
+            return a + b if e.op == "+" else a - b if e.op == "-" else a * b
+    return None
 
 
 def owner_symbols(base: Mapping[str, Symbol], params: Iterable[Declared],
@@ -112,6 +139,28 @@ class ExprChecker:
         got = self.check(e, scope, want)
         if got is not None and not assignable(got, want):
             self.bag.error("E201", f"{what} must be {want}, not {got}", e.span)
+        elif got is not None:
+            self.fits(e, want, what)
+
+    def fits(self, e: ast.Expr, want: Type, what: str) -> None:
+        """Report a constant int stored into a range it lies outside (E214): a literal, or
+        literals combined by ``- + *``, also as an item of an array literal or a branch of
+        ``if``. Other values are checked when they are stored, at run time."""
+        match e:
+            case ast.IfExpr():
+                self.fits(e.then, want, what)
+                self.fits(e.otherwise, want, what)
+                return
+            case ast.ArrayLit() if isinstance(want, ArrayT):
+                for item in e.items:
+                    self.fits(item, want.element, what)
+                return
+        if not isinstance(want, RangeT):
+            return
+        value = constant_int(e)
+        if value is not None and value not in want:
+            self.bag.error("E214", f"value {value} is outside {want} of {what}", e.span,
+                           f"{what} holds the integers from {want.lo} to {want.hi}")
 
     def _Literal(self, e: ast.Literal, scope: Scope, expected: Type | None) -> Type | None:
         if isinstance(e.value, bool):
@@ -120,6 +169,11 @@ class ExprChecker:
 
     def _Name(self, e: ast.Name, scope: Scope, expected: Type | None) -> Type | None:
         sym = scope.lookup(e.name)
+        if sym is not None and sym.kind == "enum":
+            first = sym.type.members[0] if isinstance(sym.type, EnumT) else "member"
+            self.bag.error("E103", f"'{e.name}' is an enum type, not a value", e.span,
+                           f"name one of its members, e.g. {e.name}.{first}")
+            return None
         if sym is None:
             if e.name in BUILTIN_CONSTS:
                 return BUILTIN_CONSTS[e.name][0]
@@ -132,6 +186,10 @@ class ExprChecker:
         return sym.type
 
     def _FieldAccess(self, e: ast.FieldAccess, scope: Scope, expected: Type | None) -> Type | None:
+        if isinstance(e.value, ast.Name):
+            sym = scope.lookup(e.value.name)
+            if sym is not None and sym.kind == "enum":
+                return self._member(e, sym.type)
         t = self.check(e.value, scope)
         if t is None:
             return None
@@ -144,6 +202,18 @@ class ExprChecker:
             self.bag.error("E207", f"record {t.name} has no field '{e.field}'", e.span,
                            f"its fields are: {names}")
         return ft
+
+    def _member(self, e: ast.FieldAccess, t: Type | None) -> Type | None:
+        """``Phase.grasp``: a member of an enum type."""
+        if not isinstance(t, EnumT):
+            return None    # the enum's declaration failed (reported)
+        if e.field in t.members:
+            return t
+        guess = did_you_mean(e.field, t.members)
+        self.bag.error("E212", f"enum {t.name} has no member '{e.field}'", e.span,
+                       f"did you mean '{t.name}.{guess}'?" if guess else
+                       "its members are: " + ", ".join(t.members))
+        return None
 
     def _Index(self, e: ast.Index, scope: Scope, expected: Type | None) -> Type | None:
         t = self.check(e.value, scope)
@@ -171,7 +241,7 @@ class ExprChecker:
         if not (is_numeric(t) or is_numeric_array(t)):
             self.bag.error("E203", f"cannot negate a value of type {t}", e.span)
             return None
-        return t
+        return INT if isinstance(t, RangeT) else t
 
     def _Binary(self, e: ast.Binary, scope: Scope, expected: Type | None) -> Type | None:
         if e.op in ("and", "or"):
@@ -218,12 +288,11 @@ class ExprChecker:
         b = self.check(e.otherwise, scope, expected)
         if a is None or b is None:
             return a or b
-        if assignable(a, b):
-            return b
-        if assignable(b, a):
-            return a
-        self.bag.error("E201", f"the branches of 'if' have different types ({a}, {b})", e.span)
-        return None
+        joined = join(a, b)
+        if joined is None:
+            self.bag.error("E201", f"the branches of 'if' have different types ({a}, {b})",
+                           e.span)
+        return joined
 
     def _ArrayLit(self, e: ast.ArrayLit, scope: Scope, expected: Type | None) -> Type | None:
         want = expected.element if isinstance(expected, ArrayT) else None
@@ -237,14 +306,22 @@ class ExprChecker:
         assert elem is not None
         for t, x in zip(types[1:], e.items[1:], strict=True):
             assert t is not None
-            if assignable(t, elem):
-                continue
-            if assignable(elem, t):
-                elem = t
-                continue
-            self.bag.error("E201", f"array items of different types ({elem}, {t})", x.span)
-            return None
+            joined = join(elem, t)
+            if joined is None:
+                self.bag.error("E201", f"array items of different types ({elem}, {t})", x.span)
+                return None
+            elem = joined
         return ArrayT(elem, len(e.items))
+
+    def _InBehaviour(self, e: ast.InBehaviour, scope: Scope, expected: Type | None
+                     ) -> Type | None:
+        # a property's tests are resolved before its expression is checked (properties.py)
+        from rssm_dsl.syntax.printer import expr_text
+        self.bag.error("E625", f"'{expr_text(e)}' tests which behaviour a subsystem is in; "
+                       "that is only meaningful in a property", e.span,
+                       "write it in `property NAME: always ...` inside the system, or test "
+                       "this subsystem's own state here")
+        return BOOL
 
     def _RecordLit(self, e: ast.RecordLit, scope: Scope, expected: Type | None) -> Type | None:
         if not isinstance(expected, RecordT):
@@ -342,7 +419,7 @@ class ExprChecker:
             if not is_numeric(t):  # type: ignore[arg-type]
                 self.bag.error("E201", f"{f}() needs numbers, not {t}", a.span)
                 return None
-        if f in ("abs", "min", "max", "clamp") and all(t == INT for t in types):
+        if f in ("abs", "min", "max", "clamp") and all(is_int(t) for t in types):  # type: ignore[arg-type]
             return INT
         return FLOAT
 

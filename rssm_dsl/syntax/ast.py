@@ -24,7 +24,16 @@ class ArrayType:
     size: int
 
 
-TypeExpr = NamedType | ArrayType
+@dataclass(frozen=True, slots=True)
+class RangeType:
+    """A bounded int, written as its range: `0..3`, `-5..5`."""
+
+    span: Span
+    lo: int
+    hi: int
+
+
+TypeExpr = NamedType | ArrayType | RangeType
 
 # ---------------------------------------------------------------- expressions
 
@@ -98,7 +107,19 @@ class RecordLit:
     fields: tuple[tuple[str, Expr], ...]
 
 
-Expr = Literal | Name | FieldAccess | Index | Call | Unary | Binary | IfExpr | ArrayLit | RecordLit
+@dataclass(frozen=True, slots=True)
+class InBehaviour:
+    """`SUBJECT in BEHAVIOUR` (properties only): the subsystem `subject` (written
+    `agent.subsystem`) is in its behaviour `behaviour`."""
+
+    span: Span
+    subject: Expr
+    behaviour: str
+    behaviour_span: Span
+
+
+Expr = (Literal | Name | FieldAccess | Index | Call | Unary | Binary | IfExpr | ArrayLit
+        | RecordLit | InBehaviour)
 
 # ---------------------------------------------------------------- statements
 
@@ -163,6 +184,20 @@ class FieldDecl:
     span: Span
     name: str
     type: TypeExpr
+
+
+@dataclass(frozen=True, slots=True)
+class EnumMember:
+    span: Span
+    name: str
+
+
+@dataclass(frozen=True, slots=True)
+class EnumDecl:
+    span: Span
+    name: str
+    name_span: Span
+    members: tuple[EnumMember, ...]
 
 
 @dataclass(frozen=True, slots=True)
@@ -377,14 +412,32 @@ class AgentDecl:
 
 
 @dataclass(frozen=True, slots=True)
+class PropertyDecl:
+    """`property NAME: always CONDITION` or `property NAME: whenever TRIGGER eventually GOAL`."""
+
+    span: Span
+    name: str
+    name_span: Span
+    kind: str                  # "always" | "response"
+    condition: Expr | None     # always
+    trigger: Expr | None       # response
+    goal: Expr | None          # response
+
+    @property
+    def expressions(self) -> tuple[Expr, ...]:
+        return tuple(e for e in (self.condition, self.trigger, self.goal) if e is not None)
+
+
+@dataclass(frozen=True, slots=True)
 class SystemDecl:
     span: Span
     name: str
     name_span: Span
     agents: tuple[AgentDecl, ...]
+    properties: tuple[PropertyDecl, ...] = ()
 
 
-Decl = RecordDecl | AliasDecl | ConstDecl | ExternDecl | DeviceDecl | SystemDecl
+Decl = RecordDecl | AliasDecl | EnumDecl | ConstDecl | ExternDecl | DeviceDecl | SystemDecl
 
 
 @dataclass(frozen=True, slots=True)

@@ -164,8 +164,22 @@ class AstBuilder:
     def r_alias_decl(self, t: _Node, k: list[Any]) -> ast.AliasDecl:
         return ast.AliasDecl(self._span(t), str(k[0]), self._tok(k[0]), k[1])
 
+    def r_enum_decl(self, t: _Node, k: list[Any]) -> ast.EnumDecl:
+        members = tuple(x for x in k[1:] if isinstance(x, ast.EnumMember))
+        return ast.EnumDecl(self._span(t), str(k[0]), self._tok(k[0]), members)
+
+    def r_enum_member(self, t: _Node, k: list[Any]) -> ast.EnumMember:
+        return ast.EnumMember(self._tok(k[0]), str(k[0]))
+
     def r_named_type(self, t: _Node, k: list[Any]) -> ast.NamedType:
         return ast.NamedType(self._span(t), str(k[0]))
+
+    def r_range_bound(self, t: _Node, k: list[Any]) -> tuple[int, Span]:
+        value = int(k[-1])
+        return (-value if len(k) > 1 else value), self._span(t)
+
+    def r_range_type(self, t: _Node, k: list[Any]) -> ast.RangeType:
+        return ast.RangeType(self._span(t), k[0][0], k[1][0])
 
     def r_array_type(self, t: _Node, k: list[Any]) -> ast.ArrayType:
         return self._deep(ast.ArrayType(self._span(t), k[0], int(k[1])), k, self._span(t))
@@ -200,7 +214,18 @@ class AstBuilder:
 
     # ------------------------------------------------------------- structure
     def r_system_decl(self, t: _Node, k: list[Any]) -> ast.SystemDecl:
-        return ast.SystemDecl(self._span(t), str(k[0]), self._tok(k[0]), tuple(k[1:]))
+        items = k[1:]
+        return ast.SystemDecl(self._span(t), str(k[0]), self._tok(k[0]),
+                              tuple(x for x in items if isinstance(x, ast.AgentDecl)),
+                              tuple(x for x in items if isinstance(x, ast.PropertyDecl)))
+
+    def r_property_always(self, t: _Node, k: list[Any]) -> ast.PropertyDecl:
+        return ast.PropertyDecl(self._span(t), str(k[0]), self._tok(k[0]), "always", k[1],
+                                None, None)
+
+    def r_property_response(self, t: _Node, k: list[Any]) -> ast.PropertyDecl:
+        return ast.PropertyDecl(self._span(t), str(k[0]), self._tok(k[0]), "response", None,
+                                k[1], k[2])
 
     def r_agent_decl(self, t: _Node, k: list[Any]) -> ast.AgentDecl:
         items = k[1:]
@@ -394,6 +419,9 @@ class AstBuilder:
 
     def r_index(self, t: _Node, k: list[Any]) -> ast.Expr:
         return self._expr(ast.Index(self._span(t), k[0], k[1]), k)
+
+    def r_in_behaviour(self, t: _Node, k: list[Any]) -> ast.Expr:
+        return self._expr(ast.InBehaviour(self._span(t), k[0], str(k[1]), self._tok(k[1])), k)
 
     def r_call(self, t: _Node, k: list[Any]) -> ast.Expr:
         args = [a for a in k[1:] if a is not None]

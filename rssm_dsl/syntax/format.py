@@ -36,10 +36,10 @@ CONTINUATION = "    "
 _COMMENTS = frozenset({"COMMENT", "BLOCK_COMMENT"})
 # Keywords that start a declaration or a statement: a line break goes before them.
 _DECL_START = frozenset({
-    "import", "record", "type", "const", "extern", "device", "system", "agent", "control",
+    "import", "record", "enum", "type", "const", "extern", "device", "system", "agent", "control",
     "effector", "receptor", "real", "binding", "memory", "param", "input", "output",
     "behaviour", "update", "case", "terminal", "error", "send", "receive", "initial", "switch",
-    "let", "skip",
+    "let", "skip", "property",
 })
 # Keywords that can follow another keyword inside one declaration (`device effector`,
 # `real receptor`, `update memory`, `switch a -> b otherwise`).
@@ -47,8 +47,8 @@ _AFTER = {"effector": {"device", "real"}, "receptor": {"device", "real"}, "memor
 _BLOCK_OPENER_KEYWORDS = frozenset({"memory", "control", "effector", "receptor", "Hz", "kHz"})
 _VALUE_TYPES = frozenset({"NAME", "INT", "FLOAT", "STRING"})
 _EXPR_END_WORDS = frozenset({")", "]", "true", "false", "skip"})
-_NO_SPACE_BEFORE = frozenset({",", ";", ")", "]", ".", ":"})
-_NO_SPACE_AFTER = frozenset({"(", "[", "."})
+_NO_SPACE_BEFORE = frozenset({",", ";", ")", "]", ".", ":", ".."})
+_NO_SPACE_AFTER = frozenset({"(", "[", ".", ".."})
 _OPEN = {"(": ")", "[": "]", "{": "}"}
 
 
@@ -264,7 +264,8 @@ class _Formatter:
                 forced = (self.prev_kind in ("block{", "block}", "label:") or closing_block
                           or self._decl_start(tok))
         if self.prev is not None and (forced or newlines > 0):
-            statement = forced or self.prev_kind in ("block{", "block}", "label:")
+            statement = forced or self.prev_kind in ("block{", "block}", "label:") or (
+                bool(self.blocks) and self.blocks[-1].opener == "enum" and not self.brackets)
             blank = (newlines >= 2 and self.prev_kind != "block{" and not closing_block)
             self.p.newline(blank, self._indent(tok, statement))
         elif self.prev is not None:

@@ -51,7 +51,19 @@ def expr_text(e: ast.Expr, parent: int = 0) -> str:
             return "[" + ", ".join(expr_text(x) for x in e.items) + "]"
         case ast.RecordLit():
             return "{" + ", ".join(f"{n}: {expr_text(v)}" for n, v in e.fields) + "}"
+        case ast.InBehaviour():  # binds like a postfix operator: no parentheses needed
+            return f"{expr_text(e.subject, 9)} in {e.behaviour}"
     raise AssertionError(e)
+
+
+def type_text(t: ast.TypeExpr) -> str:
+    """Text of a type as written: ``float[3]``, ``Pose``, ``0..3``, ``(-5..5)[2]`` is written
+    ``-5..5[2]``."""
+    if isinstance(t, ast.ArrayType):
+        return f"{type_text(t.element)}[{t.size}]"
+    if isinstance(t, ast.RangeType):
+        return f"{t.lo}..{t.hi}"
+    return t.name
 
 
 def stmt_text(s: ast.Stmt) -> str:
@@ -63,3 +75,13 @@ def stmt_text(s: ast.Stmt) -> str:
         case ast.Skip():
             return "skip"
     raise AssertionError(s)
+
+
+def property_text(p: ast.PropertyDecl) -> str:
+    """`property NAME: always C` or `property NAME: whenever T eventually G`."""
+    if p.kind == "always":
+        assert p.condition is not None
+        return f"property {p.name}: always {expr_text(p.condition)}"
+    assert p.trigger is not None and p.goal is not None
+    return (f"property {p.name}: whenever {expr_text(p.trigger)} "
+            f"eventually {expr_text(p.goal)}")

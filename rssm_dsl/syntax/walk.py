@@ -12,6 +12,8 @@ def children(e: ast.Expr) -> list[ast.Expr]:
     match e:
         case ast.FieldAccess():
             return [e.value]
+        case ast.InBehaviour():
+            return [e.subject]
         case ast.Unary():
             return [e.operand]
         case ast.Index():

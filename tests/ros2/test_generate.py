@@ -16,7 +16,8 @@ from rssm_dsl.ros2.names import binding_ok
 from tests.conftest import ROOT, example_specs
 from tests.ros2.conftest import SPECS
 
-SPEC_FILES = [*example_specs(), SPECS / "relay.rssm", SPECS / "wire.rssm"]
+SPEC_FILES = [*example_specs(), SPECS / "relay.rssm", SPECS / "wire.rssm",
+              SPECS / "finite.rssm"]
 
 
 def gen(path: Path) -> Workspace:

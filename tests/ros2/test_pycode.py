@@ -27,8 +27,8 @@ from rssm_dsl.pycode import var
 from rssm_dsl.ros2.msgtypes import MessageTypes
 from rssm_dsl.ros2.nodecode import Context, SubsystemCode
 from rssm_dsl.semantics.model import Subsystem, System
-from rssm_dsl.semantics.typecheck import Symbol
-from rssm_dsl.semantics.types import BOOL, FLOAT, INT, ArrayT, RecordT, Type
+from rssm_dsl.semantics.typecheck import Symbol, enum_symbols
+from rssm_dsl.semantics.types import BOOL, FLOAT, INT, ArrayT, EnumT, RangeT, RecordT, Type
 from tests.conftest import ROOT, example_specs
 from tests.ros2.conftest import SPECS
 
@@ -46,6 +46,10 @@ def random_value(t: Type, rnd: random.Random) -> Any:
         return rnd.randint(-5, 5)
     if t == BOOL:
         return rnd.random() < 0.5
+    if isinstance(t, EnumT):
+        return rnd.choice(t.members)
+    if isinstance(t, RangeT):
+        return rnd.choice([t.lo, t.hi, rnd.randint(t.lo, t.hi)])
     if isinstance(t, ArrayT):
         items = [random_value(t.element, rnd) for _ in range(t.size)]
         return float_array(items) if t.element == FLOAT else tuple(items)
@@ -74,7 +78,8 @@ def generated_module(system: System, hpn: HPN, sub: Subsystem, agent: str, j: st
 
 def interpreter(system: System, sub: Subsystem, values: SpecValues,
                 base: Path) -> ExprCompiler:
-    symbols = {c.name: Symbol("const", c.type, c.span) for c in system.consts}
+    symbols = enum_symbols(system.types, system.span)
+    symbols.update({c.name: Symbol("const", c.type, c.span) for c in system.consts})
     for v in sub.params:
         symbols[v.name] = Symbol("param", v.type, v.span)
     for v in sub.memory:
@@ -114,7 +119,7 @@ def _eq(x: Any, y: Any) -> bool:
 
 
 SPECS_UNDER_TEST = [*example_specs(), SPECS / "relay.rssm", SPECS / "wire.rssm",
-                    SPECS / "tricky.rssm"]
+                    SPECS / "tricky.rssm", SPECS / "finite.rssm"]
 
 
 @pytest.mark.parametrize("spec", SPECS_UNDER_TEST, ids=lambda p: p.stem)

@@ -306,4 +306,10 @@ VALUE_ROWS: tuple[ValueRow, ...] = (
     ValueRow("7.5 % 0.0", "float", None, "E802", "remainder by zero is an error, not nan"),
     ValueRow("sqrt(-1.0)", "float", None, "E802", "a math domain error is an error, not nan"),
     ValueRow("log(0.0)", "float", None, "E802", "a math domain error is an error, not -inf"),
+    ValueRow("once + 3", "0..3", 3, why="a range takes an int inside it"),
+    ValueRow("once - 5", "-5..5", -5, why="a range with a negative low bound"),
+    ValueRow("once + 4", "0..3", None, "E802", "an int stored outside its range is an error"),
+    ValueRow("once - 6", "-5..5", None, "E802", "an int stored outside its range is an error"),
+    ValueRow("[once, once + 9]", "0..3[2]", None, "E802",
+             "an array stored into an array of ranges is checked element by element"),
 )

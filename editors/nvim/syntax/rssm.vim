@@ -4,10 +4,10 @@ if exists("b:current_syntax")
 endif
 
 syntax case match
-syntax keyword rssmDeclaration import record type const extern device system agent control effector receptor real binding memory param input output behaviour
-syntax keyword rssmStatement update case otherwise when terminal error send receive initial switch let skip if then else
+syntax keyword rssmDeclaration import record enum type const extern device system agent control effector receptor real binding memory param input output behaviour property
+syntax keyword rssmStatement update case otherwise when terminal error send receive initial switch let skip if then else always whenever eventually
 syntax keyword rssmModifier from to blocking nonblocking
-syntax keyword rssmOperatorWord and or not
+syntax keyword rssmOperatorWord and or not in
 syntax keyword rssmBoolean true false
 syntax keyword rssmUnit Hz kHz
 syntax keyword rssmBuiltin sin cos tan asin acos atan exp log sqrt floor ceil tanh abs atan2 min max clamp norm dot cross new

@@ -78,6 +78,10 @@ def _rssm_type(d: Desc) -> Any:
         return T.ArrayT(_rssm_type(d[1]), d[2])
     if d[0] == "record":
         return T.RecordT(d[1], tuple((n, _rssm_type(fd)) for n, fd in d[2]))
+    if d[0] == "enum":
+        return T.EnumT(d[1], tuple(d[2]))
+    if d[0] == "range":
+        return T.RangeT(d[1], d[2])
     return T.SCALARS[d[0]]
 
 

@@ -4,6 +4,9 @@ A *message descriptor* is the value descriptor of :mod:`.values` with the messag
 the workspace's interfaces package filled in by the generator:
 
 * ``("bool",)``, ``("int",)``, ``("float",)``: ``bool``, ``int64``, ``float64`` fields;
+* ``("range", LO, HI)``: an ``int64`` field;
+* ``("enum", NAME, MEMBERS)``: a ``uint8`` field holding the member's position in MEMBERS
+  (the message declares the positions as constants); the value is the member's name;
 * ``("array", ELEMENT, N, WRAPPER)``: a fixed-size array field ``T[N]``; WRAPPER is ``None``
   unless the element is itself an array, which ROS messages cannot nest: then each element
   is a WRAPPER message holding the inner array in its field ``items``;
@@ -28,16 +31,21 @@ def to_msg(d: Desc) -> ToMsg:
     kind = d[0]
     if kind == "bool":
         return bool
-    if kind == "int":
+    if kind in ("int", "range"):
         return int
     if kind == "float":
         return float
+    if kind == "enum":
+        return _member_number(d)
     if kind == "array":
         elem, wrapper = d[1], d[3]
         if elem[0] == "float":
             return lambda v: np.asarray(v, dtype=np.float64)
-        if elem[0] == "int":
+        if elem[0] in ("int", "range"):
             return lambda v: np.asarray(v, dtype=np.int64)
+        if elem[0] == "enum":
+            number = _member_number(elem)
+            return lambda v: np.asarray([number(x) for x in v], dtype=np.uint8)
         if elem[0] == "bool":
             return list
         inner = to_msg(elem)
@@ -56,10 +64,12 @@ def from_msg(d: Desc) -> FromMsg:
     kind = d[0]
     if kind == "bool":
         return bool
-    if kind == "int":
+    if kind in ("int", "range"):
         return int
     if kind == "float":
         return float
+    if kind == "enum":
+        return _member_name(d)
     if kind == "array":
         elem, wrapper = d[1], d[3]
         if elem[0] == "float":
@@ -70,3 +80,21 @@ def from_msg(d: Desc) -> FromMsg:
         return lambda m: tuple(inner(x) for x in m)
     fields = tuple((name, from_msg(fd)) for name, fd in d[2])
     return lambda m: {name: conv(getattr(m, name)) for name, conv in fields}
+
+
+def _member_number(d: Desc) -> Callable[[str], int]:
+    """An enum member's name -> its number on the wire (its position among the members)."""
+    numbers = {m: k for k, m in enumerate(d[2])}
+    return numbers.__getitem__
+
+
+def _member_name(d: Desc) -> Callable[[Any], str]:
+    """An enum field's number -> the member's name; a number that names no member fails."""
+    members: tuple[str, ...] = tuple(d[2])
+
+    def name(n: Any) -> str:
+        k = int(n)
+        if not 0 <= k < len(members):
+            raise ValueError(f"{k} is not a member of enum {d[1]} (0..{len(members) - 1})")
+        return members[k]
+    return name

@@ -4,7 +4,8 @@ Every `param` of the specification is a ROS parameter of its node, with the spec
 value as default (the generated ``config/params.yaml`` repeats it). A scalar or an array of
 scalars is one parameter; a record is one parameter per field (``NAME.FIELD``, nested as
 needed); arrays of records and arrays of arrays are not exposed (the specification's value
-is used). Values are checked against the declared type (an int is accepted for a float).
+is used). Values are checked against the declared type (an int is accepted for a float; a
+range takes an int inside it; an enum is a string parameter, the member's name).
 
 The runtime's own parameters live under ``rssm.``, which no name of a specification can
 take: ``rssm.rate_hz`` (the iteration frequency; the specification's by default, 0 = as
@@ -69,15 +70,16 @@ def runtime_params(node: Node, frequency: float | None) -> RuntimeParams:
 
 
 Leaf = tuple[str, tuple[str, ...], Any]
+_LEAF_KINDS = ("bool", "int", "float", "enum", "range")
 
 
 def leaves(name: str, desc: tuple[Any, ...], default: Any) -> list[Leaf]:
     """The ROS parameters of one specification parameter: (ROS name, field path, default)."""
     kind = desc[0]
-    if kind in ("bool", "int", "float"):
+    if kind in _LEAF_KINDS:
         return [(name, (), default)]
     if kind == "array":
-        return [(name, (), default)] if desc[1][0] in ("bool", "int", "float") else []
+        return [(name, (), default)] if desc[1][0] in _LEAF_KINDS else []
     out: list[Leaf] = []
     for field, fd in desc[2]:
         for ros, path, value in leaves(f"{name}.{field}", fd, default[field]):

@@ -18,3 +18,5 @@ class CheckContext:
     # subsystem id -> behaviours with a switch that has errors: their switches are not
     # checked again, nor the reachability of the subsystem's behaviours
     unchecked: dict[str, set[str]] = field(default_factory=dict)
+    # subsystem id -> its variables and parameters that properties read (they count as used)
+    property_reads: dict[str, set[str]] = field(default_factory=dict)

@@ -4,17 +4,22 @@ hold (E603); warn when two can hold at once (W604) and when a behaviour is unrea
 Switch conditions are abstracted to propositional formulas: the names of the source
 behaviour's terminal/error conditions are atoms (at least one is true when it ends), every
 other comparison or boolean value is an independent atom (`x > 1` and `x <= 1` are one atom,
-negated). The check enumerates the assignments, so it is exact for that abstraction.
+negated), except that comparisons of one value with members of its enum (`phase ==
+Phase.grasp`, `phase != Phase.idle`) exclude each other, and cover every case when they name
+all the members. The check enumerates the assignments, so it is exact for that abstraction.
 """
 
 from __future__ import annotations
 
 import itertools
+import re
+from collections.abc import Mapping
 from dataclasses import dataclass
 
 from rssm_dsl.diagnostics import Related
 from rssm_dsl.semantics.checks.context import CheckContext
 from rssm_dsl.semantics.model import Behaviour, Subsystem, Switch
+from rssm_dsl.semantics.types import EnumT
 from rssm_dsl.syntax import ast
 from rssm_dsl.syntax.printer import expr_text
 
@@ -80,6 +85,37 @@ def _eval(f: F, env: dict[str, bool]) -> bool:
             return _eval(f.args[0], env) or _eval(f.args[1], env)  # type: ignore[arg-type]
 
 
+_MEMBER = r"([A-Za-z_][A-Za-z0-9_]*)\.([A-Za-z_][A-Za-z0-9_]*)"
+_VALUE_IS_MEMBER = (re.compile(rf"(.+) == {_MEMBER}\Z"), re.compile(rf"{_MEMBER} == (.+)\Z"))
+
+
+def _enum_groups(atoms: set[str], enums: Mapping[str, EnumT]
+                 ) -> list[tuple[list[str], bool]]:
+    """The atoms `VALUE == E.member` grouped by VALUE and E: at most one of a group holds,
+    and exactly one when the group names every member of E (the bool)."""
+    groups: dict[tuple[str, str], dict[str, str]] = {}
+    for atom in atoms:
+        m = _VALUE_IS_MEMBER[0].match(atom)
+        if m is not None:
+            value, enum, member = m.group(1), m.group(2), m.group(3)
+        elif (m := _VALUE_IS_MEMBER[1].match(atom)) is not None:
+            value, enum, member = m.group(3), m.group(1), m.group(2)
+        else:
+            continue
+        if enum in enums and member in enums[enum].members:
+            groups.setdefault((value, enum), {})[member] = atom
+    return [(list(g.values()), len(g) == len(enums[enum].members))
+            for (_, enum), g in groups.items()]
+
+
+def _possible(env: dict[str, bool], groups: list[tuple[list[str], bool]]) -> bool:
+    for atoms, total in groups:
+        true = sum(env[a] for a in atoms)
+        if true > 1 or (total and true == 0):
+            return False
+    return True
+
+
 def _describe(env: dict[str, bool]) -> str:
     ended = [k[5:] for k, v in sorted(env.items()) if k.startswith("cond:") and v]
     data = [f"{k} is {'true' if v else 'false'}" for k, v in sorted(env.items())
@@ -120,6 +156,8 @@ def _check_behaviour(ctx: CheckContext, s: Subsystem, b: Behaviour) -> None:
     if len(atoms) > MAX_ATOMS:
         return
     order = sorted(atoms)
+    enums = {n: t for n, t in ctx.system.types if isinstance(t, EnumT)}
+    groups = _enum_groups(atoms, enums)
     missing: list[str] = []
     overlaps: dict[tuple[int, int], str] = {}
     for values in itertools.product((False, True), repeat=len(order)):
@@ -127,6 +165,8 @@ def _check_behaviour(ctx: CheckContext, s: Subsystem, b: Behaviour) -> None:
         if any(env[f"cond:{c.name}"] for c in b.conditions if c.never):
             continue
         if not any(env[f"cond:{c.name}"] for c in live):
+            continue
+        if not _possible(env, groups):
             continue
         explicit = [i for i, (_, f) in enumerate(formulas) if f is not None and _eval(f, env)]
         holding = explicit or [i for i, (_, f) in enumerate(formulas) if f is None]

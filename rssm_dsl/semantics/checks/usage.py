@@ -62,7 +62,7 @@ def check_usage(ctx: CheckContext) -> None:
         decl = ctx.decls.get(s.id)
         if decl is None or not s.behaviours:
             continue  # no behaviours: E609 says it all
-        read = names_read(decl)
+        read = names_read(decl) | ctx.property_reads.get(s.id, set())
         written = ctx.written.get(s.id, set())
         for b in s.inputs:
             if b.name not in read:

@@ -62,20 +62,20 @@ def _initial(p: Mapping[str, Any]) -> State:
 
 
 def f_1_1_1(st: State, stage: dict[str, Any]) -> None:
-    # a: update x, examples/verify/lockstep.rssm:20
+    # a: update x, examples/verify/lockstep.rssm:22
     v_m = st.v_m
     v_x = (not v_m)
     stage['v_x'] = v_x
 
 
 def f_1_2_1(st: State, stage: dict[str, Any]) -> None:
-    # a: update y, examples/verify/lockstep.rssm:21
+    # a: update y, examples/verify/lockstep.rssm:23
     v_y = 0.5
     stage['v_y'] = v_y
 
 
 def f_1_3_1(st: State, stage: dict[str, Any]) -> None:
-    # a: update memory, examples/verify/lockstep.rssm:22
+    # a: update memory, examples/verify/lockstep.rssm:24
     v_m = st.v_m
     v_m = (not v_m)
     stage['v_m'] = v_m
@@ -87,20 +87,20 @@ def cond_1_1(st: State) -> bool:
 
 
 def f_2_1_1(st: State, stage: dict[str, Any]) -> None:
-    # b: update x, examples/verify/lockstep.rssm:27
+    # b: update x, examples/verify/lockstep.rssm:29
     v_m = st.v_m
     v_x = (not v_m)
     stage['v_x'] = v_x
 
 
 def f_2_2_1(st: State, stage: dict[str, Any]) -> None:
-    # b: update y, examples/verify/lockstep.rssm:28
+    # b: update y, examples/verify/lockstep.rssm:30
     v_y = 0.25
     stage['v_y'] = v_y
 
 
 def f_2_3_1(st: State, stage: dict[str, Any]) -> None:
-    # b: update memory, examples/verify/lockstep.rssm:29
+    # b: update memory, examples/verify/lockstep.rssm:31
     v_m = st.v_m
     v_m = (not v_m)
     stage['v_m'] = v_m
@@ -142,9 +142,9 @@ def iterate_1(r: _Runner) -> _Iteration:
 def switch_1(st: State, conds: Mapping[str, bool]) -> str | None:
     # after a: the first switch whose condition holds
     v_m = st.v_m
-    if v_m:  # switch a -> b, examples/verify/lockstep.rssm:34
+    if v_m:  # switch a -> b, examples/verify/lockstep.rssm:36
         return 'b'
-    return 'a'  # otherwise: switch a -> a, examples/verify/lockstep.rssm:35
+    return 'a'  # otherwise: switch a -> a, examples/verify/lockstep.rssm:37
 
 
 # ---------------------------------------------------------------- behaviour b: P^B[cell,c,b]
@@ -178,9 +178,9 @@ def iterate_2(r: _Runner) -> _Iteration:
 def switch_2(st: State, conds: Mapping[str, bool]) -> str | None:
     # after b: the first switch whose condition holds
     v_m = st.v_m
-    if v_m:  # switch b -> b, examples/verify/lockstep.rssm:36
+    if v_m:  # switch b -> b, examples/verify/lockstep.rssm:38
         return 'b'
-    return 'a'  # otherwise: switch b -> a, examples/verify/lockstep.rssm:37
+    return 'a'  # otherwise: switch b -> a, examples/verify/lockstep.rssm:39
 
 
 # ---------------------------------------------------------------- the subsystem

@@ -62,7 +62,7 @@ def _initial(p: Mapping[str, Any]) -> State:
 
 
 def f_1_1_1(st: State, stage: dict[str, Any]) -> None:
-    # p: update memory, examples/verify/lockstep.rssm:47
+    # p: update memory, examples/verify/lockstep.rssm:49
     v_y = st.v_y
     v_seen = v_y
     stage['v_seen'] = v_seen
@@ -80,7 +80,7 @@ def cond_1_2(st: State) -> bool:
 
 
 def f_2_1_1(st: State, stage: dict[str, Any]) -> None:
-    # q: update memory, examples/verify/lockstep.rssm:53
+    # q: update memory, examples/verify/lockstep.rssm:55
     v_y = st.v_y
     v_seen = v_y
     stage['v_seen'] = v_seen
@@ -123,9 +123,9 @@ def iterate_1(r: _Runner) -> _Iteration:
 def switch_1(st: State, conds: Mapping[str, bool]) -> str | None:
     # after p: the first switch whose condition holds
     v_x = st.v_x
-    if v_x:  # switch p -> q, examples/verify/lockstep.rssm:59
+    if v_x:  # switch p -> q, examples/verify/lockstep.rssm:61
         return 'q'
-    return 'p'  # otherwise: switch p -> p, examples/verify/lockstep.rssm:60
+    return 'p'  # otherwise: switch p -> p, examples/verify/lockstep.rssm:62
 
 
 # ---------------------------------------------------------------- behaviour q: P^B[robot,c,q]
@@ -154,9 +154,9 @@ def iterate_2(r: _Runner) -> _Iteration:
 def switch_2(st: State, conds: Mapping[str, bool]) -> str | None:
     # after q: the first switch whose condition holds
     v_x = st.v_x
-    if v_x:  # switch q -> q, examples/verify/lockstep.rssm:61
+    if v_x:  # switch q -> q, examples/verify/lockstep.rssm:63
         return 'q'
-    return 'p'  # otherwise: switch q -> p, examples/verify/lockstep.rssm:62
+    return 'p'  # otherwise: switch q -> p, examples/verify/lockstep.rssm:64
 
 
 # ---------------------------------------------------------------- the subsystem
