@@ -37,6 +37,16 @@ VARIANTS = {
         (("switch a -> b when m", "switch a -> b when not m"),
          ("switch b -> b when m", "switch b -> b when not m")),
         Verdict.VIOLATED, Verdict.VIOLATED),
+    "the flag is an enum": (
+        (("system lockstep {", "enum Order { flag_first, position_first }\nsystem lockstep {"),
+         ("output x: bool to robot.c", "output x: Order to robot.c"),
+         ("input x: bool from cell.c", "input x: Order from cell.c"),
+         ("update x { x := not m }",
+          "update x { x := if m then Order.flag_first else Order.position_first }"),
+         ("switch p -> q when x", "switch p -> q when x == Order.position_first"),
+         ("switch q -> q when x", "switch q -> q when x == Order.position_first"),
+         ("always cell.c.x == cell.c.m", "always (cell.c.x == Order.position_first) == cell.c.m")),
+        Verdict.VERIFIED, Verdict.VIOLATED),
     "robot switches on a float": (
         (("switch p -> q when x", "switch p -> q when y > 0.3"),
          ("switch q -> q when x", "switch q -> q when y > 0.3")),
