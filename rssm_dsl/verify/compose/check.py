@@ -134,6 +134,10 @@ class _Composer:
         # each step, so that the progress check starts a subsystem's agent from there
         self.root_order: list[int] = []
         self.root_steps: list[tuple[int, Lts | None]] = []
+        # ... and the system page's parts from each step on, composed (from the last back):
+        # a subsystem's agent is then composed with what came before it and what comes
+        # after, two compositions instead of the rest of the ring again
+        self.root_suffix: dict[int, Lts] = {}
 
     # ------------------------------------------------------------------ step 1
     def verdict(self, reuse: bool) -> bool:
@@ -310,20 +314,67 @@ class _Chain:
                 self.used_by.setdefault(t, set()).add(i)
 
     def run(self, record: bool) -> Lts:
-        """``record``: keep the order and every step's start (the system page in step 1)."""
+        """``record``: keep the order and every step's start (the system page in step 1),
+        and the composition of the parts from each step on (``suffixes``)."""
         order = composition_order([p.alphabet for p in self.parts])
         if record:
             self.c.root_order[:] = order
-        return self._steps(order, 0, None, record)
+        whole = self._steps(order, 0, None, record)
+        if record:
+            self.suffixes()
+        return whole
+
+    def suffixes(self) -> None:
+        """For each recorded step but the first, the parts from it to the end composed,
+        backwards, each action hidden once every part using it is in."""
+        c, parts, order = self.c, self.parts, self.c.root_order
+        starts = [q for q, _ in c.root_steps] + [len(order)]
+        inside: dict[int, int] = {}
+
+        def closed(lts: Lts, keep: frozenset[int] = frozenset()) -> set[int]:
+            return {t for t in lts.alphabet if inside[t] == len(self.used_by[t])
+                    and t not in self.visible and t not in keep}
+
+        cur: Lts | None = None
+        for i in range(len(starts) - 2, 0, -1):
+            segment: Lts | None = None
+            for j in order[starts[i]:starts[i + 1]]:
+                for t in parts[j].alphabet:
+                    inside[t] = inside.get(t, 0) + 1
+            later = cur.alphabet if cur is not None else frozenset()
+            for j in order[starts[i]:starts[i + 1]]:
+                segment = parts[j] if segment is None else c.compose(
+                    segment, parts[j], closed(segment, later) | closed(parts[j], later))
+            assert segment is not None
+            if cur is None:
+                cur = c.minimized(segment.hide(closed(segment)))
+            else:
+                hidden = closed(cur) | closed(segment)
+                cur = c.compose(segment, cur, hidden,
+                                self._interfaces((cur.alphabet | segment.alphabet) - hidden))
+            c.root_suffix[starts[i]] = cur
 
     def resume(self, replaced: int) -> Lts:
         """The recorded composition with part ``replaced`` replaced, which is the only one
-        to differ: it starts from the last step recorded before that part."""
-        order = self.c.root_order
+        to differ: from the last step recorded before that part, that step, then the
+        composition of the steps after it (``suffixes``)."""
+        c, order = self.c, self.c.root_order
         where = order.index(replaced)
-        q, cur = max((step for step in self.c.root_steps if step[0] <= where),
-                     key=lambda step: step[0])
-        return self._steps(order, q, cur, False)
+        i = max(k for k, (q, _) in enumerate(c.root_steps) if q <= where)
+        q, cur = c.root_steps[i]
+        end = c.root_steps[i + 1][0] if i + 1 < len(c.root_steps) else len(order)
+        suffix = c.root_suffix.get(end)
+        if suffix is None:
+            return self._steps(order, q, cur, False)
+        for j in order[end:]:
+            for t in self.parts[j].alphabet:
+                self.left[t] = self.left.get(t, 0) + 1
+        head = self._steps(order, q, cur, False, stop=end)
+        for j in order[end:]:
+            self._take(j)
+        hidden = self._closed(head, frozenset()) | self._closed(suffix, frozenset())
+        return c.compose(head, suffix, hidden,
+                         self._interfaces((head.alphabet | suffix.alphabet) - hidden))
 
     def _interfaces(self, alphabet: frozenset[int]) -> list[frozenset[int]]:
         """The open actions grouped by the parts that use them (those composed and those
@@ -343,12 +394,16 @@ class _Chain:
         return {t for t in lts.alphabet if self.left[t] == 0 and t not in self.visible
                 and t not in keep}
 
-    def _steps(self, order: list[int], q: int, cur: Lts | None, record: bool) -> Lts:
+    def _steps(self, order: list[int], q: int, cur: Lts | None, record: bool,
+               stop: int | None = None) -> Lts:
+        """Compose the parts ``order[q:stop]`` onto ``cur`` (the parts after ``stop`` are
+        counted as still to come: what they use stays visible)."""
         c, parts = self.c, self.parts
-        for i in order[q:]:
+        end = len(order) if stop is None else stop
+        for i in order[q:end]:
             for t in parts[i].alphabet:
                 self.left[t] = self.left.get(t, 0) + 1
-        while q < len(order):
+        while q < end:
             if record:
                 c.root_steps.append((q, cur))
             segment = self._take(order[q])
@@ -359,14 +414,14 @@ class _Chain:
             # a connector between ``cur`` and the next part (a channel and the agent reading
             # it) is composed with that part first: ``cur`` never carries the channel's state
             # unconstrained by its reader, and there is one large reduction instead of two
-            if (order[q - 1] in self.connectors and q < len(order)
+            if (order[q - 1] in self.connectors and q < end
                     and segment.alphabet <= cur.alphabet | parts[order[q]].alphabet):
                 nxt = self._take(order[q])
                 q += 1
                 segment = c.compose(segment, nxt, self._closed(segment, cur.alphabet)
                                     | self._closed(nxt, cur.alphabet))
             hidden = self._closed(cur, frozenset()) | self._closed(segment, frozenset())
-            if q == len(order) and not self.visible and self.k_root:
+            if q == len(order) and stop is None and not self.visible and self.k_root:
                 cur = c.product(cur, segment, hidden)
                 continue
             cur = c.compose(cur, segment, hidden,
