@@ -64,6 +64,11 @@ def verify_cmd(
     progress_check: Annotated[bool, typer.Option("--progress-check/--no-progress-check",
                               help="Look for subsystems that can get stuck while the rest "
                                    "keeps running (off: exit 4 instead of 0).")] = True,
+    fairness: Annotated[str, typer.Option(
+        help="What progress assumes of the schedule: strong (a move possible infinitely "
+             "often is taken; every engine) or weak (only a move enabled for good must be "
+             "taken, so starvation by a schedule that passes over a move enabled now and "
+             "then is reported; needs the full state space).")] = "strong",
     cross_check: Annotated[bool, typer.Option(
         "--cross-check", help="Also run SPIN (deadlock, safeness), 4ti2 (P-semiflows) and, on "
                               "small nets, cpncheck (the hierarchical .cpn) when installed, "
@@ -100,6 +105,9 @@ def verify_cmd(
             typer.echo(f"rssmc: --reduction must be auto, on, off or compositional, not "
                        f"{reduction!r}", err=True)
             return EXIT_BAD_INPUT
+        if fairness not in ("strong", "weak"):
+            typer.echo(f"rssmc: --fairness must be strong or weak, not {fairness!r}", err=True)
+            return EXIT_BAD_INPUT
         try:
             memory = parse_size(max_memory) if max_memory is not None else default_max_memory()
         except ValueError as e:
@@ -111,7 +119,8 @@ def verify_cmd(
         try:
             with _limited(budget):
                 code = _verify(budget, live, file, format, reduction, max_states, invariants,
-                               progress_check, cross_check, promela, show_invariants)
+                               progress_check, cross_check, promela, show_invariants,
+                               fairness)
         except KeyboardInterrupt:               # a second Ctrl-C: quit at once
             code = EXIT_INTERRUPTED
             typer.echo("rssmc: interrupted", err=True)
@@ -129,7 +138,7 @@ def verify_cmd(
 
 def _verify(budget: Budget, live: _Live | None, file: Path, format: Format, reduction: str,
             max_states: int, invariants: bool, progress_check: bool, cross_check: bool,
-            promela: Path | None, show_invariants: bool) -> int:
+            promela: Path | None, show_invariants: bool, fairness: str = "strong") -> int:
     """Compile, verify, print; the exit code."""
     from rssm_dsl.hpn.flatten import flatten
     from rssm_dsl.pipeline import compile_file
@@ -153,7 +162,8 @@ def _verify(budget: Budget, live: _Live | None, file: Path, format: Format, redu
         write_outputs(promela.parent if str(promela.parent) else Path("."),
                       {promela.name: to_promela(net, values)})
     options = VerifyOptions(max_states=max_states, reduction=reduction, invariants=invariants,
-                            check_progress=progress_check, budget=budget, values=values)
+                            check_progress=progress_check, budget=budget, values=values,
+                            fairness=fairness)
     result = verify(net, options)
     extra: dict[str, Any] = {}
     text_extra: list[str] = []

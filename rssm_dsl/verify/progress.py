@@ -33,6 +33,7 @@ doing while ``s`` waits.
 
 from __future__ import annotations
 
+from collections.abc import Callable
 from dataclasses import dataclass
 
 import numpy as np
@@ -217,10 +218,12 @@ def marked_any(graph: Graph, mask: int, nwords: int) -> Bools:
 
 
 def check_progress(nb: NetBits, graph: Graph, subsystems: list[str] | None = None,
-                   budget: Budget | None = None) -> ProgressResult:
+                   budget: Budget | None = None, fairness: str = "strong") -> ProgressResult:
     """Subsystems that can lose progress (see the module docstring), with lassos. A limit
     of the budget ends the check: the subsystems checked before it and their violations are
-    returned, with ``stopped``."""
+    returned, with ``stopped``. With ``fairness="weak"`` (the graph must be the full one:
+    every enabled transition an edge), also a subsystem that a weakly fair run starves
+    (``weak_starvation``)."""
     net = nb.net
     names = subsystems_of(net) if subsystems is None else subsystems
     violations: list[ProgressViolation] = []
@@ -230,7 +233,7 @@ def check_progress(nb: NetBits, graph: Graph, subsystems: list[str] | None = Non
     with limits.running("the progress check"):
         try:
             _check_subsystems(nb, graph, [s for s in names if s not in skipped], limits,
-                              violations, checked)
+                              violations, checked, fairness == "weak")
         except LimitReached as e:
             return ProgressResult(tuple(violations), tuple(checked), tuple(skipped),
                                   e.stop.message)
@@ -241,7 +244,8 @@ def check_progress(nb: NetBits, graph: Graph, subsystems: list[str] | None = Non
 
 
 def _check_subsystems(nb: NetBits, graph: Graph, names: list[str], budget: Budget,
-                      violations: list[ProgressViolation], checked: list[str]) -> None:
+                      violations: list[ProgressViolation], checked: list[str],
+                      weak: bool = False) -> None:
     """``check_progress`` for the subsystems ``names`` (all with ITERATION transitions):
     each is appended to ``checked`` once decided, its violation (if any) first."""
     n = graph.size
@@ -259,7 +263,7 @@ def _check_subsystems(nb: NetBits, graph: Graph, names: list[str], budget: Budge
         budget.check(len(checked))
         is_it = np.zeros(nb.ntrans, dtype=np.bool_)
         is_it[bits(nb.iteration_mask(s))] = True
-        if unique_terminal is not None and (
+        if not weak and unique_terminal is not None and (
                 unique_terminal[graph.src] & is_it[graph.trans]).any():
             checked.append(s)
             continue
@@ -272,7 +276,104 @@ def _check_subsystems(nb: NetBits, graph: Graph, names: list[str], budget: Budge
         hits = np.flatnonzero(stuck)
         if hits.size:
             violations.append(_lasso(graph, s, int(hits[0]), budget))
+        elif weak:
+            unfinished = marked_any(graph, live_places(nb.net, s), nb.nwords)
+            found = weak_starvation(graph, s, unfinished, is_it, budget)
+            if found is not None:
+                violations.append(found)
         checked.append(s)
+
+
+def weak_starvation(graph: Graph, s: str, unfinished: Bools, is_it: Bools,
+                    budget: Budget | None = None) -> ProgressViolation | None:
+    """A weakly fair run that starves ``s``: a strongly connected set C of states where
+    ``s`` is unfinished, joined by moves other than ``s``'s iterations, in which every
+    transition enabled in all states of C is taken (weak fairness: a move enabled for good
+    is taken). A run round all of C is then weakly fair and never iterates ``s``; a smaller
+    cycle inside C would only have more moves enabled throughout and fewer taken, so C is
+    the only candidate in its component. ``graph`` must be complete (every enabled
+    transition of a state is one of its edges)."""
+    from rssm_dsl.verify.scc import components
+
+    n = graph.size
+    src, dst, trans = (graph.src.astype(np.int64), graph.dst.astype(np.int64),
+                       graph.trans.astype(np.int64))
+    inner = unfinished[src] & unfinished[dst] & ~is_it[trans]
+    succ: list[list[int]] = [[] for _ in range(n)]
+    for a, b in zip(src[inner].tolist(), dst[inner].tolist(), strict=True):
+        succ[a].append(b)
+    check = budget.check if budget is not None else None
+    comp_list, _ = components(succ, check)
+    comp = np.array(comp_list, dtype=np.int64)
+    internal = inner & (comp[src] == comp[dst])
+    if not internal.any():
+        return None
+    nt = int(trans.max()) + 1
+    size = np.bincount(comp, minlength=int(comp.max()) + 1)
+    # (component, transition): in how many of its states enabled; taken inside it
+    pairs = np.unique(src[unfinished[src]] * nt + trans[unfinished[src]])
+    at, t_of = pairs // nt, pairs % nt
+    keys, counts = np.unique(comp[at] * nt + t_of, return_counts=True)
+    everywhere = keys[counts == size[keys // nt]]
+    taken = np.unique(comp[src[internal]] * nt + trans[internal])
+    unfair = np.unique(everywhere[~np.isin(everywhere, taken)] // nt)
+    candidates = np.setdiff1d(np.unique(comp[src[internal]]), unfair)
+    if candidates.size == 0:
+        return None
+    c = int(candidates[0])
+    members = np.flatnonzero(comp == c)
+    entry = int(members.min())                # the first in BFS order: shortest prefix
+    needed = set((everywhere[everywhere // nt == c] % nt).tolist())
+    cycle = _fair_cycle(graph, entry, comp == c, internal, needed)
+    return ProgressViolation(subsystem=s, point=entry, prefix=graph.path(entry), to_cycle=(),
+                             cycle=cycle, cycle_marking=graph.marking(entry))
+
+
+def _fair_cycle(graph: Graph, entry: int, inside: Bools, internal: Bools,
+                needed: set[int]) -> tuple[int, ...]:
+    """A cycle from ``entry`` through states of ``inside`` along ``internal`` edges that
+    takes every transition of ``needed`` (at least one step)."""
+    edges = np.flatnonzero(internal & inside[graph.src])
+    out: dict[int, list[tuple[int, int]]] = {}
+    for e in edges.tolist():
+        out.setdefault(int(graph.src[e]), []).append((int(graph.trans[e]), int(graph.dst[e])))
+
+    def path(a: int, goal: Callable[[int, int, int], bool]) -> tuple[list[int], int]:
+        """BFS from ``a`` to the first edge (x, t, y) with goal(x, t, y): its steps, y."""
+        prev: dict[int, tuple[int, int]] = {a: (-1, -1)}
+        frontier = [a]
+        while frontier:
+            nxt = []
+            for x in frontier:
+                for t, y in out.get(x, []):
+                    if goal(x, t, y):
+                        steps = [t]
+                        while x != a:
+                            px, pt = prev[x]
+                            steps.append(pt)
+                            x = px
+                        return steps[::-1], y
+                    if y not in prev:
+                        prev[y] = (x, t)
+                        nxt.append(y)
+            frontier = nxt
+        raise ValueError("no such edge inside the component")
+
+    cycle: list[int] = []
+    here = entry
+    def labelled(wanted: int) -> Callable[[int, int, int], bool]:
+        return lambda x, t, y: t == wanted
+
+    def back(x: int, t: int, y: int) -> bool:
+        return y == entry
+
+    for t_needed in sorted(needed):
+        steps, here = path(here, labelled(t_needed))
+        cycle += steps
+    if here != entry or not cycle:
+        steps, here = path(here, back)
+        cycle += steps
+    return tuple(cycle)
 
 
 def _lasso(graph: Graph, s: str, point: int, budget: Budget) -> ProgressViolation:

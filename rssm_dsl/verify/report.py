@@ -41,12 +41,21 @@ EXIT_CODES = {Verdict.VERIFIED: EXIT_VERIFIED, Verdict.VIOLATED: EXIT_VIOLATED,
 
 
 # what "loses progress" assumes of the schedule and of the free choices (printed with it)
-PROGRESS_FAIRNESS = "strong"
-PROGRESS_ASSUMPTION = (
-    "strong fairness: a subsystem loses progress when some reachable state lets no "
-    "continuation complete another iteration of it; a run that keeps a move or a free choice "
-    "possible infinitely often and never takes it is not counted (starvation by such a "
-    "schedule is not reported)")
+FAIRNESS = ("strong", "weak")
+PROGRESS_ASSUMPTIONS = {
+    "strong": (
+        "strong fairness: a subsystem loses progress when some reachable state lets no "
+        "continuation complete another iteration of it; a run that keeps a move or a free "
+        "choice possible infinitely often and never takes it is not counted (starvation by "
+        "such a schedule is not reported)"),
+    "weak": (
+        "weak fairness: a subsystem loses progress when some run never completes another "
+        "iteration of it while every move that stays enabled for good is eventually taken; "
+        "a move (or a free choice) enabled only now and then may be passed over forever "
+        "(starvation by such a schedule is reported)"),
+}
+PROGRESS_FAIRNESS = "strong"          # the default
+PROGRESS_ASSUMPTION = PROGRESS_ASSUMPTIONS[PROGRESS_FAIRNESS]
 
 
 VALUES_ASSUMPTION = ("assuming no operation fails at run time (E802): terminal and error "
@@ -242,6 +251,7 @@ class VerifyReport:
     tracked_values: tuple[str, ...] = field(default=())
     # the properties stated in the spec (userprops.py)
     user_properties: tuple[PropertyResult, ...] = field(default=())
+    fairness: str = PROGRESS_FAIRNESS          # what progress assumed (FAIRNESS)
     # sliced verification (verify/sliced.py): per blocking group its subsystems and whether
     # its slice can get stuck for good (a deadlock of the slice; None: not decided)
     groups: tuple[tuple[tuple[str, ...], bool | None], ...] = field(default=())
@@ -316,7 +326,8 @@ class VerifyReport:
             "headline": self.headline(),
             "properties": self.properties(),
             "progress_check": self.progress_requested,
-            "progress_assumption": {"fairness": PROGRESS_FAIRNESS, "text": PROGRESS_ASSUMPTION}
+            "progress_assumption": {"fairness": self.fairness,
+                                    "text": PROGRESS_ASSUMPTIONS[self.fairness]}
             if self.progress_requested else None,
             "stopped_by": self.stop.to_json() if self.stop is not None else None,
             "limits": {"time_seconds": self.time_limit, "memory_bytes": self.max_memory},
@@ -367,7 +378,7 @@ def _summary_lines(r: VerifyReport) -> list[str]:
         "keeps running",
         "not checked (--no-progress-check)" if not r.progress_requested else undecided))
     if r.progress_requested:
-        out.append(f"  assuming:   {PROGRESS_ASSUMPTION}")
+        out.append(f"  assuming:   {PROGRESS_ASSUMPTIONS[r.fairness]}")
     if r.method:
         out.append(f"  states:     {r.states} explored ({r.method}"
                    f"{'' if r.complete else ', incomplete'}), {r.edges} firings, depth "

@@ -56,6 +56,7 @@ from rssm_dsl.verify.invariants import DEFAULT_MAX_ROWS, InvariantResult, place_
 from rssm_dsl.verify.netbits import NetBits, bits, to_mask
 from rssm_dsl.verify.progress import check_progress, subsystems_of
 from rssm_dsl.verify.report import (
+    FAIRNESS,
     Counterexample,
     InvariantLine,
     Verdict,
@@ -97,10 +98,14 @@ class VerifyOptions:
     slice_after_states: int = 200_000    # ... when the whole net has more states than this
     slice_after_seconds: float = 0.75    # ... or takes longer to explore
     values: ValuePlan | None = None      # the finite values to track (dataplan.value_plan)
+    fairness: str = "strong"             # progress: "strong" or "weak" (report.FAIRNESS)
     values_first: bool = True            # ... only once the conditions as free choices
     #                                      gave a violation (verify_with_values)
 
     def __post_init__(self) -> None:
+        if self.fairness not in FAIRNESS:
+            raise ValueError(f"fairness must be one of {', '.join(FAIRNESS)}, "
+                             f"not {self.fairness!r}")
         if self.reduction not in REDUCTIONS:
             raise ValueError(f"reduction must be one of {', '.join(REDUCTIONS)}, "
                              f"not {self.reduction!r}")
@@ -175,10 +180,9 @@ def verify(net: FlatNet, options: VerifyOptions | None = None) -> VerifyReport:
         deadlock_free = None
 
     dead_transitions, unreachable = _dead_parts(net, full, comp, reduced, notes)
-    graph = (full.graph if full is not None and full.complete else
-             reduced.graph if reduced is not None and reduced.complete else None)
-    progress = (_progress(net, nb, graph, comp, notes, budget) if opts.check_progress
-                else _Progress())
+    graph = _progress_graph(opts, full, reduced)
+    progress = (_progress(net, nb, graph, comp, notes, budget, opts.fairness)
+                if opts.check_progress else _Progress())
 
     violated = safe is False or deadlock_free is False or progress.ok is False
     if violated:
@@ -222,6 +226,7 @@ def verify(net: FlatNet, options: VerifyOptions | None = None) -> VerifyReport:
         notes=tuple(notes),
         stop=budget.stop,
         progress_requested=opts.check_progress,
+        fairness=opts.fairness,
         why_undecided=_why_undecided(budget, (("the full exploration", full),
                                               ("the compositional check", comp),
                                               ("the stubborn-set exploration", reduced))),
@@ -411,12 +416,23 @@ class _Progress:
     lost: tuple[str, ...] = ()
 
 
+def _progress_graph(opts: VerifyOptions, full: SearchResult | None,
+                    reduced: SearchResult | None) -> Graph | None:
+    """The graph progress is judged on: a complete search's (weak fairness needs every
+    enabled move, so only the full search's)."""
+    if full is not None and full.complete:
+        return full.graph
+    if reduced is not None and reduced.complete and opts.fairness == "strong":
+        return reduced.graph
+    return None
+
+
 def _progress(net: FlatNet, nb: NetBits, graph: Graph | None, comp: ComposeResult | None,
-              notes: list[str], budget: Budget) -> _Progress:
+              notes: list[str], budget: Budget, fairness: str = "strong") -> _Progress:
     """Step 3, progress: on the reachability graph of a complete search, else from the
     compositional check."""
     if graph is not None and budget.stop is None:
-        result = check_progress(nb, graph, subsystems_of(net), budget)
+        result = check_progress(nb, graph, subsystems_of(net), budget, fairness)
         if result.stopped:
             notes.append(f"progress not decided: {result.stopped}; checked before: "
                          + (", ".join(result.checked) or "none"))
@@ -432,11 +448,13 @@ def _progress(net: FlatNet, nb: NetBits, graph: Graph | None, comp: ComposeResul
             for v in result.violations)
         ok = False if result.violations else None if result.stopped else True
         return _Progress(ok, cxs, result.checked)
-    if comp is not None and comp.detail_complete:
+    if comp is not None and comp.detail_complete and fairness == "strong":
         return _Progress(not comp.progress_lost, (), tuple(comp.progress_checked),
                          tuple(comp.progress_lost))
     if budget.stop is None:         # else the report says which limit stopped the run
-        notes.append("progress not decided: the state space was not explored completely")
+        notes.append("progress not decided: the state space was not explored completely"
+                     + (" (weak fairness needs the full state space: --reduction off)"
+                        if fairness == "weak" else ""))
     return _Progress()
 
 
