@@ -59,6 +59,14 @@ which may lie a few extra firings later than the full graph's one (if those firi
 ``s`` without an iteration, the violation is missed). Dead transitions and unreachable
 behaviours are not preserved (they would need every transition visible).
 
+State properties (``visible``, for the properties stated in the spec, verify/userprops.py):
+a transition that can change an atom of the property is *visible*; a set holding an enabled
+visible transition holds them all (V), and with the cycle proviso (L) no visible transition
+is put off forever. The reduced graph then has, for every run of the full one, a run with
+the same sequence of visible firings (stuttering equivalence, Valmari), so it reaches a
+marking where the atoms have given values iff the full graph does: a state invariant over
+the atoms holds in the reduced graph iff it holds in the full one.
+
 With ``reduce=False`` the same search fires every enabled transition: a plain Python
 reference explorer for the tests.
 """
@@ -83,11 +91,12 @@ class StubbornExplorer:
     """Stubborn-set breadth-first search over int markings."""
 
     def __init__(self, net_bits: NetBits, safe_places: int = 0, reduce: bool = True,
-                 proviso: bool = False) -> None:
+                 proviso: bool = False, visible: int = 0) -> None:
         nb = net_bits
         self.nb = nb
         self.reduce = reduce
         self.proviso = proviso
+        self.visible = visible
         self.pre = nb.pre
         self.post = nb.post
         self.produce = nb.produce
@@ -109,7 +118,7 @@ class StubbornExplorer:
                 self.watched.append((p, 1 << p, bits(nb.producers[p])))
         self.lonely = 0             # transitions sharing no input place with another one
         for t in range(nb.ntrans):
-            if nb.conflict[t] == 1 << t:
+            if nb.conflict[t] == 1 << t and not visible >> t & 1:
                 self.lonely |= 1 << t
 
     def initial_enabled(self, m: int) -> int:
@@ -157,6 +166,8 @@ class StubbornExplorer:
             missing = pre[t] & ~m
             if not missing:
                 add = conflict[t]
+                if self.visible >> t & 1:       # V: one enabled visible brings them all
+                    add |= self.visible
             elif missing & (missing - 1) == 0:
                 add = producers[missing.bit_length() - 1]
             else:       # several unmarked inputs: the one bringing the fewest new transitions
@@ -451,13 +462,17 @@ def explore_reduced(
     reduce: bool = True,
     for_progress: bool = False,
     budget: Budget | None = None,
+    visible: int = 0,
 ) -> SearchResult:
     """Deadlocks and safeness by stubborn-set search (see the module docstring).
 
     ``safe_places`` is the mask of places already proved safe (by place invariants). With
     ``for_progress`` the cycle proviso is applied and the reduced graph is kept, for the
-    progress check (``progress.check_progress`` runs on it unchanged).
+    progress check (``progress.check_progress`` runs on it unchanged). ``visible``: the
+    transitions that can change the atoms of a state property (the V condition; use it with
+    ``for_progress`` for the proviso).
     """
-    explorer = StubbornExplorer(net_bits, safe_places, reduce, proviso=for_progress)
+    explorer = StubbornExplorer(net_bits, safe_places, reduce, proviso=for_progress,
+                                visible=visible)
     return explorer.explore(max_states, time_limit, max_counterexamples, progress,
                             keep_graph=for_progress, budget=budget)

@@ -9,8 +9,9 @@ the whole net, and the group's moves replay in the whole net with the rest stand
 the whole net when it holds in the slice; a violation found in the slice is replayed in the
 whole net before it is reported.
 
-What: the states are explored whole (breadth first) and each property's atoms are read from
-every state: `SUB in BEH` is true when a place of BEH's page of SUB is marked, `SUB.NAME` is
+What: the states are explored (breadth first; for `always`, with stubborn sets that keep every
+transition changing an atom visible, stubborn.py) and each property's atoms are read from
+every state explored: `SUB in BEH` is true when a place of BEH's page of SUB is marked, `SUB.NAME` is
 the value whose place is marked. The expression itself is evaluated by
 :class:`rssm_dsl.semantics.properties.Formula` (the interpreter's compiled code), once per
 distinct combination of atom values.
@@ -38,6 +39,7 @@ from rssm_dsl.hpn.flat import FlatNet
 from rssm_dsl.semantics.model import Property, System
 from rssm_dsl.semantics.properties import Formula, InBehaviour, UnknownValue, Value
 from rssm_dsl.verify.budget import Budget
+from rssm_dsl.verify.cover import one_token_semiflows
 from rssm_dsl.verify.datanet import track_new
 from rssm_dsl.verify.dataplan import ValuePlan
 from rssm_dsl.verify.netbits import NetBits
@@ -45,68 +47,83 @@ from rssm_dsl.verify.progress import backward_closure
 from rssm_dsl.verify.report import Counterexample, PropertyResult, marking_labels
 from rssm_dsl.verify.slicing import ReplayError, blocking_groups, replay_group, slice_net
 from rssm_dsl.verify.statespace import Graph, explore_full
+from rssm_dsl.verify.stubborn import explore_reduced
 from rssm_dsl.verify.valuenet import track_values
-
-
-@dataclass
-class _Where:
-    """The net a property is checked on and how its states read the atoms."""
-
-    net: FlatNet                      # the explored (tracked) net
-    graph: Graph
-    to_flat: Any                      # TrackedNet: steps back to the (sliced) flat net
-    slice: Any | None                 # Slice, or None for the whole net
 
 
 def check_properties(net: FlatNet, system: System, plan: ValuePlan | None,
                      budget: Budget, max_states: int) -> tuple[PropertyResult, ...]:
-    """Every property of ``system`` checked on ``net`` (the module docstring)."""
-    out: list[PropertyResult] = []
+    """Every property of ``system`` checked on ``net`` (the module docstring). The
+    properties of one kind on the same slice share one exploration."""
     groups = blocking_groups(net)
+    batches: dict[tuple[str, tuple[str, ...]], list[tuple[Property, list[Formula]]]] = {}
     for prop in system.properties:
+        formulas = [Formula(system, e) for e in prop.expressions]
+        mentioned = {a.subsystem_id for f in formulas for a in f.atoms}
+        keep = tuple(sorted({s for g in groups if mentioned & set(g) for s in g}))
+        batches.setdefault((prop.kind, keep), []).append((prop, formulas))
+    results: dict[str, PropertyResult] = {}
+    for (kind, keep), batch in batches.items():
         if budget.stop is not None:
-            out.append(PropertyResult(prop.name, prop.kind, _text(prop), None, None,
-                                      f"not checked: {budget.stop.message}", prop.span))
+            for prop, _ in batch:
+                results[prop.name] = PropertyResult(
+                    prop.name, prop.kind, _text(prop), None, None,
+                    f"not checked: {budget.stop.message}", prop.span)
             continue
-        try:
-            out.append(_check(net, prop, system, plan, groups, budget, max_states))
-        except UnknownValue as e:     # pragma: no cover - caught per state below
-            out.append(PropertyResult(prop.name, prop.kind, _text(prop), None, None, str(e),
-                                      prop.span))
-    return tuple(out)
+        where = _explore(net, kind, keep, [f for _, fs in batch for f in fs], plan, budget,
+                         max_states)
+        for prop, formulas in batch:
+            results[prop.name] = _judge(net, prop, formulas, where, budget)
+    return tuple(results[p.name] for p in system.properties)
 
 
-def _text(prop: Property) -> str:
-    from rssm_dsl.syntax.printer import expr_text
+@dataclass
+class _Explored:
+    """A slice (or the whole net) explored for some properties."""
 
-    if prop.kind == "always":
-        assert prop.condition is not None
-        return f"always {expr_text(prop.condition)}"
-    assert prop.trigger is not None and prop.goal is not None
-    return f"whenever {expr_text(prop.trigger)} eventually {expr_text(prop.goal)}"
+    tracked: Any                      # TrackedNet: the net explored, its steps back
+    slice: Any | None                 # Slice, or None for the whole net
+    graph: Graph | None               # None: not decided (``why``)
+    where: str
+    why: str
 
 
-def _check(net: FlatNet, prop: Property, system: System, plan: ValuePlan | None,
-           groups: Sequence[tuple[str, ...]], budget: Budget, max_states: int
-           ) -> PropertyResult:
-    formulas = [Formula(system, e) for e in prop.expressions]
+def _explore(net: FlatNet, kind: str, keep: tuple[str, ...], formulas: list[Formula],
+             plan: ValuePlan | None, budget: Budget, max_states: int) -> _Explored:
     atoms = [a for f in formulas for a in f.atoms]
-    mentioned = {a.subsystem_id for a in atoms}
-    keep = sorted({s for g in groups if mentioned & set(g) for s in g})
     sl = slice_net(net, keep) if set(keep) != set(net.subsystems) and keep else None
     base = sl.net if sl is not None else net
     keys = frozenset(f"{a.subsystem_id}.{a.variable_name}" for a in atoms
                      if isinstance(a, Value))
     tracked = track_values(track_new(base), plan, keys)
-    result = explore_full(NetBits.of(tracked.net), max_states=max_states, keep_graph=True,
-                          max_counterexamples=1, budget=budget)
+    nb = NetBits.of(tracked.net)
+    if kind == "always":          # state invariants: stubborn sets keep them (stubborn.py, V)
+        # the places one-token semiflows prove safe need no up-set (stubborn.py)
+        safe = 0
+        for f in one_token_semiflows(tracked.net, range(len(tracked.net.places)),
+                                     lambda: budget.poll() is not None):
+            for p in f.support:
+                safe |= 1 << p
+        result = explore_reduced(nb, safe_places=safe, max_states=max_states,
+                                 max_counterexamples=1, for_progress=True, budget=budget,
+                                 visible=_visible(tracked.net, atoms))
+    else:
+        result = explore_full(nb, max_states=max_states, keep_graph=True,
+                              max_counterexamples=1, budget=budget)
     where = "the whole net" if sl is None else f"the slice of {', '.join(keep)}"
     if not result.complete or result.graph is None:
         why = result.stopped or "the exploration stopped"
-        return PropertyResult(prop.name, prop.kind, _text(prop), None, None,
-                              f"not decided: {why} ({result.states:,} states of {where})",
+        return _Explored(tracked, sl, None, where,
+                         f"not decided: {why} ({result.states:,} states of {where})")
+    return _Explored(tracked, sl, result.graph, where, "")
+
+
+def _judge(net: FlatNet, prop: Property, formulas: list[Formula], ex: _Explored,
+           budget: Budget) -> PropertyResult:
+    graph, tracked, where = ex.graph, ex.tracked, ex.where
+    if graph is None:
+        return PropertyResult(prop.name, prop.kind, _text(prop), None, None, ex.why,
                               prop.span)
-    graph = result.graph
     truth = [_truth(f, graph, tracked.net) for f in formulas]
     if prop.kind == "always":
         bad = ~truth[0][0]
@@ -122,7 +139,7 @@ def _check(net: FlatNet, prop: Property, system: System, plan: ValuePlan | None,
         state = int(np.flatnonzero(bad)[0])
         steps = tracked.steps(tracked.net.transitions[t] for t in graph.path(state))
         try:
-            cx = _lift(net, sl, steps, prop)
+            cx = _lift(net, ex.slice, steps, prop)
         except ReplayError as e:
             return PropertyResult(prop.name, prop.kind, _text(prop), None, None,
                                   f"not decided: a violation found in {where} was not "
@@ -135,6 +152,16 @@ def _check(net: FlatNet, prop: Property, system: System, plan: ValuePlan | None,
                               f"in {int(unknown.sum()):,} of {states}", prop.span)
     return PropertyResult(prop.name, prop.kind, _text(prop), True, None, f"holds ({states})",
                           prop.span)
+
+
+def _text(prop: Property) -> str:
+    from rssm_dsl.syntax.printer import expr_text
+
+    if prop.kind == "always":
+        assert prop.condition is not None
+        return f"always {expr_text(prop.condition)}"
+    assert prop.trigger is not None and prop.goal is not None
+    return f"whenever {expr_text(prop.trigger)} eventually {expr_text(prop.goal)}"
 
 
 def _lift(net: FlatNet, sl: Any, steps: Sequence[Any], prop: Property) -> Counterexample:
@@ -207,6 +234,26 @@ def _evaluate(f: Formula, row: tuple[int, ...], getters: list[Any]) -> bool | No
         return None
     except Exception:
         return None
+
+
+def _visible(net: FlatNet, atoms: Sequence[Any]) -> int:
+    """The transitions that can change an atom: those touching one side only of a
+    behaviour's places, or of one value's place."""
+    masks: list[int] = []
+    for a in atoms:
+        if isinstance(a, InBehaviour):
+            masks.append(sum(1 << p.index for p in net.places
+                             if p.subsystem == a.subsystem_id and p.behaviour == a.behaviour))
+        else:
+            key = f"value {a.subsystem_id}.{a.variable_name}"
+            masks += [1 << p.index for p in net.places if p.channel == key]
+    out = 0
+    for t in net.transitions:
+        pre = sum(1 << p for p in t.pre)
+        post = sum(1 << p for p in t.post)
+        if any(bool(pre & m) != bool(post & m) for m in masks):
+            out |= 1 << t.index
+    return out
 
 
 def _any_marked(graph: Graph, places: Sequence[int]) -> Any:

@@ -22,7 +22,8 @@ from rssm_dsl.verify.promela import run_spin
 from rssm_dsl.verify.report import Verdict
 from rssm_dsl.verify.valuenet import track_values
 
-LOCKSTEP = Path(__file__).parents[2] / "examples" / "verify" / "lockstep.rssm"
+ROOT = Path(__file__).parents[2]
+LOCKSTEP = ROOT / "examples" / "verify" / "lockstep.rssm"
 
 # the robot's switches read the flag it received: variants of the protocol and what the
 # verifier must answer with the values tracked (and with the conditions as free choices)
@@ -184,3 +185,34 @@ def test_user_property_verdicts(text: str, tmp_path: Path) -> None:
                        for m in cx.marking), cx.marking
             assert any(m.startswith("robot.c (q)") or m.startswith("robot.c behaviour q")
                        for m in cx.marking), cx.marking
+
+
+@pytest.mark.slow
+def test_state_invariants_of_the_handover_on_its_slice(tmp_path: Path) -> None:
+    """Two invariants over the arm and the base, checked on the slice of their group with
+    stubborn sets that keep every move changing an atom visible (about a minute): one holds,
+    the other is violated (the base's clamp may time out while the arm releases, and the
+    base docks again), and its firing sequence reaches such a state in the whole net."""
+    text = (ROOT / "examples" / "verify" / "handover.rssm").read_text(encoding="utf-8")
+    path = tmp_path / "handover.rssm"
+    path.write_text(text.rstrip().removesuffix("}") + """
+  property no_stale_clamp: always not (base.c in unload and base.c.clamped)
+  property no_release_while_docking: always not (arm.c in release and base.c in dock)
+}
+""", encoding="utf-8")
+    comp = compile_file(path)
+    assert comp.ok, comp.diagnostics
+    net, plan = _plan(comp)
+    r = verify(net, VerifyOptions(time_limit=240, values=plan))
+    holds = {p.name: p.holds for p in r.user_properties}
+    assert holds == {"no_stale_clamp": True, "no_release_while_docking": False}
+    assert r.verdict is Verdict.VIOLATED
+    cx = next(p.counterexample for p in r.user_properties if p.holds is False)
+    assert cx is not None
+    marking = set(net.initial)
+    for t in cx.steps:                       # a firing sequence of the whole net
+        assert marking >= set(t.pre), t.label
+        marking = (marking - set(t.pre)) | set(t.post)
+    places = [net.places[p] for p in marking]
+    assert any(p.subsystem == "arm.c" and p.behaviour == "release" for p in places)
+    assert any(p.subsystem == "base.c" and p.behaviour == "dock" for p in places)
