@@ -263,6 +263,7 @@ def _cross_check(net: Any, result: Any, hpn: Any = None, budget: Budget | None =
     out: dict[str, Any] = {}
     lines = ["", "independent cross-checks:"]
     for name, check in (("SPIN", _spin), ("SPIN on the slices", _spin_slices),
+                        ("SPIN on the progress lassos", _spin_lassos),
                         ("4ti2", _fourtitwo), ("cpncheck", _cpncheck)):
         if budget is not None and budget.stop is not None:
             line, data = f": not run ({budget.stop.message})", {"ran": False,
@@ -316,6 +317,30 @@ def _spin_slices(net: Any, result: Any, hpn: Any, budget: Budget | None, values:
     text = ", ".join(f"{n} {word}" for word, n in counts.items() if n)
     return (f": {len(rows)} slice(s), stuck or not: {text}",
             {"ran": True, "slices": rows, "agrees": counts["DISAGREE"] == 0})
+
+
+def _spin_lassos(net: Any, result: Any, hpn: Any, budget: Budget | None, values: Any = None,
+                 ) -> tuple[str, dict[str, Any]]:
+    """SPIN from each loss of progress's point of no return: no iteration of the subsystem
+    and no deadlock reachable from there (promela.check_lasso)."""
+    from rssm_dsl.verify.promela import check_lasso
+
+    lassos = [c for c in result.progress if c.subsystem is not None]
+    if not lassos:
+        why = "no loss of progress with a firing sequence to check"
+        return f": not run ({why})", {"ran": False, "message": why}
+    rows = []
+    for c in lassos:
+        check = check_lasso(net, c.steps, c.subsystem, values, budget=budget)
+        rows.append({"subsystem": c.subsystem, "confirmed": check.confirmed,
+                     "iterates": check.iterates, "deadlock": check.deadlock,
+                     "states": check.states, "message": check.message})
+    counts = {word: sum(1 for r in rows if r["confirmed"] is value)
+              for word, value in (("confirmed", True), ("REFUTED", False),
+                                  ("undecided", None))}
+    text = ", ".join(f"{n} {word}" for word, n in counts.items() if n)
+    return (f": {len(rows)} lasso(s) from their point of no return: {text}",
+            {"ran": True, "lassos": rows, "agrees": counts["REFUTED"] == 0})
 
 
 def _fourtitwo(net: Any, result: Any, hpn: Any, budget: Budget | None, values: Any = None,
