@@ -38,8 +38,9 @@ Progress (``for_progress``): the reduced graph can also decide the progress prop
 a fully expanded marking. It is enforced after the search rather than during it (a per-state
 test such as "a successor is already known" expands far too much in cyclic controllers): when
 the queue is empty, the strongly connected components of the subgraph of partly expanded
-markings are computed, one marking of each component carrying a cycle is expanded fully, the
-search resumes on what that adds, and so on until no cycle avoids a fully expanded marking.
+markings are computed, markings meeting every cycle of them (the back-edge targets of a
+depth-first search) are expanded fully, the search resumes on what that adds, and so on
+until no cycle avoids a fully expanded marking.
 With D1, D2 and the proviso, for every explored marking ``y``:
 
 * a firing sequence from ``y`` to a deadlock exists in the full graph iff one exists in the
@@ -428,8 +429,9 @@ class _Clock:
 
 def _cycle_breakers(n: int, src: list[int], dst: list[int], partial: list[bool],
                     budget: Budget | None = None) -> list[int]:
-    """One marking (the lowest) per cycle-carrying strongly connected component of the
-    subgraph of partly expanded markings, components in the order Tarjan closes them."""
+    """Markings that meet every cycle of the subgraph of partly expanded markings (a
+    feedback vertex set: the back-edge targets of a depth-first search of each cyclic
+    strongly connected component, and the markings with a self-loop)."""
     succ: list[list[int]] = [[] for _ in range(n)]
     selfloop = [False] * n
     for k, (a, b) in enumerate(zip(src, dst, strict=True)):
@@ -443,13 +445,36 @@ def _cycle_breakers(n: int, src: list[int], dst: list[int], partial: list[bool],
     comp, ncomp = components(succ, budget.check if budget is not None else None)
     lowest = [n] * ncomp
     size = [0] * ncomp
-    cyclic = [False] * ncomp
     for v in range(n):
         c = comp[v]
         size[c] += 1
         lowest[c] = min(lowest[c], v)
-        cyclic[c] = cyclic[c] or selfloop[v]
-    return [lowest[c] for c in range(ncomp) if size[c] > 1 or cyclic[c]]
+    # a depth-first search of each cyclic component from its lowest marking: the targets of
+    # its back edges meet every cycle of the component (and the self-loops theirs), so one
+    # round breaks them all instead of one per component
+    breakers = {v for v in range(n) if selfloop[v]}
+    state = [0] * n             # 0 not seen, 1 on the stack, 2 done
+    for c in range(ncomp):
+        root = lowest[c]
+        if size[c] < 2 or state[root]:
+            continue
+        state[root] = 1
+        stack = [(root, iter(succ[root]))]
+        while stack:
+            v, edges = stack[-1]
+            for w in edges:
+                if comp[w] != c:
+                    continue
+                if state[w] == 1:
+                    breakers.add(w)
+                elif state[w] == 0:
+                    state[w] = 1
+                    stack.append((w, iter(succ[w])))
+                    break
+            else:
+                state[v] = 2
+                stack.pop()
+    return sorted(breakers)
 
 
 def explore_reduced(
