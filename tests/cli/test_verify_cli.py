@@ -103,3 +103,22 @@ def test_the_report_states_what_progress_assumes() -> None:
     assert "assuming:   strong fairness" in verify(spec).stdout
     off = json.loads(verify(spec, "--format", "json", "--no-progress-check").stdout)
     assert off["progress_assumption"] is None
+
+
+def test_lockstep_values_properties_and_fairness_through_the_cli() -> None:
+    """The data decides lockstep's verdict, its two properties hold, and the report says
+    what it tracked and what fairness it assumed; a bad --fairness is an input error."""
+    spec = EXAMPLES / "verify" / "lockstep.rssm"
+    r = verify(spec, "--format", "json")
+    assert r.returncode == 0, r.stdout + r.stderr
+    report = json.loads(r.stdout)
+    assert report["verdict"] == "verified"
+    assert "robot.c.x" in report["conditions"]["tracked_values"]
+    assert {p["name"]: p["holds"] for p in report["user_properties"]} == {
+        "flag_is_memory": True, "alternates": True}
+    assert report["progress_assumption"]["fairness"] == "strong"
+    weak = json.loads(verify(spec, "--format", "json", "--fairness", "weak").stdout)
+    assert weak["progress_assumption"]["fairness"] == "weak" and weak["verdict"] == "verified"
+    bad = verify(spec, "--fairness", "fair")
+    assert bad.returncode == 2 and "--fairness must be strong or weak" in bad.stderr
+    assert "Traceback" not in bad.stderr
