@@ -79,6 +79,12 @@ def marking_labels(net: FlatNet, marking: frozenset[int]) -> tuple[str, ...]:
     return tuple(net.places[p].label or net.places[p].name for p in sorted(marking))
 
 
+def marking_where(net: FlatNet, marking: frozenset[int]) -> tuple[tuple[str, str], ...]:
+    """Each marked place's label with the file:line of the user's text it comes from."""
+    return tuple((net.places[p].label or net.places[p].name, net.places[p].span.location)
+                 for p in sorted(marking))
+
+
 @dataclass(frozen=True)
 class Counterexample:
     """A firing sequence from the initial marking that exhibits a violation.
@@ -97,6 +103,7 @@ class Counterexample:
     to_cycle: tuple[FlatTransition, ...] = ()
     cycle: tuple[FlatTransition, ...] = ()
     cycle_marking: tuple[str, ...] = ()
+    where: tuple[tuple[str, str], ...] = ()   # (label, file:line) of the marking's places
 
     def stuck_at(self) -> tuple[str, ...]:
         """For a loss of progress: where the subsystem stands in the marking reached (its
@@ -109,8 +116,14 @@ class Counterexample:
             f"{self.subsystem}.{b} " in m for b in buffers)]
         return (*own, *channels)
 
+    def stuck_where(self) -> tuple[str, ...]:
+        """The file:line of each line of :meth:`stuck_at` ("" when not known)."""
+        where = dict(self.where)
+        return tuple(where.get(x, "") for x in self.stuck_at())
+
     def lines(self) -> list[str]:
-        out = [f"    stands at: {x}" for x in self.stuck_at()]
+        out = [f"    stands at: {x}" + (f" ({loc})" if loc else "")
+               for x, loc in zip(self.stuck_at(), self.stuck_where(), strict=True)]
         out += [f"  {i + 1:>3}. {step_text(t)}" for i, t in enumerate(self.steps)]
         if not self.steps:
             out.append("    (in the initial marking)")
@@ -139,6 +152,7 @@ class Counterexample:
             data["doubled"] = list(self.doubled)
         if self.kind == "progress":
             data["stuck_at"] = list(self.stuck_at())
+            data["stuck_at_locations"] = list(self.stuck_where())
             data["to_cycle"] = [_transition_json(t) for t in self.to_cycle]
             data["cycle"] = [_transition_json(t) for t in self.cycle]
             data["cycle_marking"] = list(self.cycle_marking)

@@ -33,7 +33,13 @@ from typing import TYPE_CHECKING
 from rssm_dsl.hpn.flat import FlatNet, FlatTransition
 from rssm_dsl.verify.budget import Budget
 from rssm_dsl.verify.progress import live_places
-from rssm_dsl.verify.report import Counterexample, Verdict, VerifyReport, marking_labels
+from rssm_dsl.verify.report import (
+    Counterexample,
+    Verdict,
+    VerifyReport,
+    marking_labels,
+    marking_where,
+)
 from rssm_dsl.verify.slicing import ReplayError, Slice, replay_group, run_outside, slice_net
 
 if TYPE_CHECKING:
@@ -115,6 +121,7 @@ class _Lifted:
         for s in stuck:
             self.progress.append(Counterexample(
                 "progress", self._steps(steps), self._labels(m), subsystem=s,
+                where=marking_where(self.net, m),
                 to_cycle=self._steps(to_cycle), cycle=self._steps(cycle),
                 cycle_marking=self._labels(at_cycle)))
 
@@ -131,6 +138,7 @@ class _Lifted:
                 k = seen[at]
                 self.progress.append(Counterexample(
                     "progress", self._steps(steps), self._labels(m), subsystem=cx.subsystem,
+                    where=marking_where(self.net, m),
                     to_cycle=self._steps(passes[:k]), cycle=self._steps(passes[k:]),
                     cycle_marking=self._labels(at)))
                 return

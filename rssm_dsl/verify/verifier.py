@@ -62,6 +62,7 @@ from rssm_dsl.verify.report import (
     Verdict,
     VerifyReport,
     marking_labels,
+    marking_where,
 )
 from rssm_dsl.verify.sliced import verify_sliced
 from rssm_dsl.verify.slicing import blocking_groups
@@ -442,6 +443,7 @@ def _progress(net: FlatNet, nb: NetBits, graph: Graph | None, comp: ComposeResul
         cxs = tuple(Counterexample(
             kind="progress", steps=_steps(net, v.prefix),
             marking=marking_labels(net, nb.marking_of(graph.marking(v.point))),
+            where=marking_where(net, nb.marking_of(graph.marking(v.point))),
             subsystem=v.subsystem, to_cycle=_steps(net, v.to_cycle),
             cycle=_steps(net, v.cycle),
             cycle_marking=marking_labels(net, nb.marking_of(v.cycle_marking)))

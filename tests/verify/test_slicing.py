@@ -289,6 +289,14 @@ def test_buggy_handover_is_violated_and_the_lasso_replays(tmp_path: Path) -> Non
     assert lost["base.c"].stuck_at() == (
         "base.c (clamp) receives grip_open (blocking): start",
         "channel arm.c.grip_open -> base.c.grip_open (blocking/blocking): empty")
+    # ... each with the line of the user's text: the buffers' declarations
+    lines = path.read_text(encoding="utf-8").splitlines()
+    for cx, declared in ((lost["arm.c"], "output part_pose: Pose to base.c blocking"),
+                         (lost["base.c"], "input grip_open: bool from arm.c blocking")):
+        where = cx.stuck_where()
+        assert all(w.rpartition(":")[0].endswith(path.name) for w in where), where
+        assert declared in lines[int(where[0].rpartition(":")[2]) - 1]
+        assert cx.to_json()["stuck_at_locations"] == list(where)
     out = tmp_path / "report.json"
     out.write_text(json.dumps(report.to_json()), encoding="utf-8")
     cx = load_counterexample(out)
