@@ -40,3 +40,17 @@ def names(e: ast.Expr) -> Iterator[ast.Name]:
             yield x
         else:
             stack += children(x)
+
+
+def statement_exprs(st: ast.Stmt) -> Iterator[tuple[ast.Expr, str | None]]:
+    """The expressions a statement evaluates (the value, the indexes of its target), each
+    with the name of the variable the statement assigns (None for the indexes)."""
+    if isinstance(st, ast.Let):
+        yield st.value, None
+    elif isinstance(st, ast.Assign):
+        target = st.target
+        while isinstance(target, ast.FieldAccess | ast.Index):
+            if isinstance(target, ast.Index):
+                yield target.index, None
+            target = target.value
+        yield st.value, target.name if isinstance(target, ast.Name) else None

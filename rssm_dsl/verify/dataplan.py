@@ -47,7 +47,7 @@ from rssm_dsl.semantics.typecheck import Symbol, owner_symbols
 from rssm_dsl.semantics.types import BOOL, finite_domain
 from rssm_dsl.source import Span
 from rssm_dsl.syntax import ast
-from rssm_dsl.syntax.walk import names
+from rssm_dsl.syntax.walk import names, statement_exprs
 
 MAX_VALUATIONS = 4096      # per transition: beyond, its values are left unknown
 
@@ -136,23 +136,14 @@ def _truth(fn: Callable[[dict[str, Any]], Any], env: dict[str, Any]) -> bool | N
 
 
 def _stmt_names(stmts: Iterable[ast.Stmt]) -> set[str]:
+    """The names statements read, and the variables they assign (a partial write keeps the
+    rest of the value)."""
     out: set[str] = set()
-    for s in stmts:
-        if isinstance(s, ast.Assign):
-            out |= {n.name for n in names(s.value)}
-            target = s.target
-            while not isinstance(target, ast.Name):
-                if isinstance(target, ast.Index):
-                    out |= {n.name for n in names(target.index)}
-                    target = target.value
-                elif isinstance(target, ast.FieldAccess):
-                    target = target.value
-                else:
-                    break
-            if isinstance(target, ast.Name):
-                out.add(target.name)      # a partial write keeps the rest of the value
-        elif isinstance(s, ast.Let):
-            out |= {n.name for n in names(s.value)}
+    for st in stmts:
+        for e, target in statement_exprs(st):
+            out |= {n.name for n in names(e)}
+            if target is not None:
+                out.add(target)
     return out
 
 

@@ -35,17 +35,17 @@ from typing import Any
 
 import numpy as np
 
-from rssm_dsl.hpn.flat import FlatNet
+from rssm_dsl.hpn.flat import FlatNet, FlatTransition
 from rssm_dsl.semantics.model import Property, System
 from rssm_dsl.semantics.properties import Formula, InBehaviour, UnknownValue, Value
 from rssm_dsl.verify.budget import Budget
 from rssm_dsl.verify.cover import one_token_semiflows
-from rssm_dsl.verify.datanet import track_new
+from rssm_dsl.verify.datanet import TrackedNet, track_new
 from rssm_dsl.verify.dataplan import ValuePlan
 from rssm_dsl.verify.netbits import NetBits
 from rssm_dsl.verify.progress import backward_closure
 from rssm_dsl.verify.report import Counterexample, PropertyResult, marking_labels
-from rssm_dsl.verify.slicing import ReplayError, blocking_groups, replay_group, slice_net
+from rssm_dsl.verify.slicing import ReplayError, Slice, blocking_groups, replay_group, slice_net
 from rssm_dsl.verify.statespace import Graph, explore_full
 from rssm_dsl.verify.stubborn import explore_reduced
 from rssm_dsl.verify.valuenet import track_values
@@ -81,8 +81,8 @@ def check_properties(net: FlatNet, system: System, plan: ValuePlan | None,
 class _Explored:
     """A slice (or the whole net) explored for some properties."""
 
-    tracked: Any                      # TrackedNet: the net explored, its steps back
-    slice: Any | None                 # Slice, or None for the whole net
+    tracked: TrackedNet               # the net explored, and its steps told back
+    slice: Slice | None               # None: the whole net
     graph: Graph | None               # None: not decided (``why``)
     where: str
     why: str
@@ -164,7 +164,8 @@ def _text(prop: Property) -> str:
     return f"whenever {expr_text(prop.trigger)} eventually {expr_text(prop.goal)}"
 
 
-def _lift(net: FlatNet, sl: Any, steps: Sequence[Any], prop: Property) -> Counterexample:
+def _lift(net: FlatNet, sl: Slice | None, steps: Sequence[FlatTransition],
+          prop: Property) -> Counterexample:
     if sl is None:
         marking = set(net.initial)
         for t in steps:

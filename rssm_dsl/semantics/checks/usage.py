@@ -6,7 +6,7 @@ from collections.abc import Iterator
 
 from rssm_dsl.semantics.checks.context import CheckContext
 from rssm_dsl.syntax import ast
-from rssm_dsl.syntax.walk import names
+from rssm_dsl.syntax.walk import names, statement_exprs
 
 
 def _exprs(decl: ast.SubsystemDecl) -> Iterator[tuple[ast.Expr, str | None]]:
@@ -35,19 +35,7 @@ def _behaviour_exprs(bd: ast.BehaviourDecl) -> Iterator[tuple[ast.Expr, str | No
             if case.condition is not None:
                 yield case.condition, None
             for st in case.body:
-                yield from _statement_exprs(st)
-
-
-def _statement_exprs(st: ast.Stmt) -> Iterator[tuple[ast.Expr, str | None]]:
-    if isinstance(st, ast.Let):
-        yield st.value, None
-    elif isinstance(st, ast.Assign):
-        target = st.target
-        while isinstance(target, ast.FieldAccess | ast.Index):
-            if isinstance(target, ast.Index):
-                yield target.index, None
-            target = target.value
-        yield st.value, target.name if isinstance(target, ast.Name) else None
+                yield from statement_exprs(st)
 
 
 def names_read(decl: ast.SubsystemDecl) -> set[str]:
