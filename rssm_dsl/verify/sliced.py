@@ -30,7 +30,7 @@ import time
 from collections.abc import Callable, Sequence
 from typing import TYPE_CHECKING
 
-from rssm_dsl.hpn.flat import FlatNet, FlatTransition
+from rssm_dsl.hpn.flat import FlatNet, FlatTransition, Role
 from rssm_dsl.verify.budget import Budget
 from rssm_dsl.verify.progress import live_places
 from rssm_dsl.verify.report import (
@@ -41,6 +41,7 @@ from rssm_dsl.verify.report import (
     marking_where,
 )
 from rssm_dsl.verify.slicing import ReplayError, Slice, replay_group, run_outside, slice_net
+from rssm_dsl.verify.stalls import stall_together
 
 if TYPE_CHECKING:
     from rssm_dsl.verify.verifier import VerifyOptions
@@ -65,6 +66,9 @@ def verify_sliced(net: FlatNet, groups: Sequence[tuple[str, ...]], opts: VerifyO
         if budget.stop is not None:
             break
         sl = slices[i]
+        if check_progress and opts.fairness == "strong" and stall_together(net, sl.keep):
+            found[i] = _by_deadlocks(sl, quick, budget, verify)
+            continue
         r = _decide(sl, opts if check_progress else quick, verify)
         if r.verdict is Verdict.INCONCLUSIVE and check_progress and budget.stop is None:
             # progress not decided: at least safeness and deadlocks
@@ -87,6 +91,28 @@ def _decide(sl: Slice, opts: VerifyOptions, verify: Verifier) -> VerifyReport:
         return small
     cap = min(opts.max_states, STUBBORN_STATES)
     return verify(sl.net, dataclasses.replace(opts, max_states=cap))
+
+
+def _by_deadlocks(sl: Slice, quick: VerifyOptions, budget: Budget,
+                  verify: Verifier) -> VerifyReport:
+    """A group that stalls together (``stalls``): its slice's deadlock check decides its
+    progress too. Explored whole or by stubborn sets (``_decide``), else compositionally
+    (safeness and deadlocks only: one composition of the slice, no per-subsystem one)."""
+    r = _decide(sl, quick, verify)
+    if r.verdict is Verdict.INCONCLUSIVE and budget.stop is None:
+        first = r
+        r = verify(sl.net, dataclasses.replace(quick, reduction="compositional"))
+        r = dataclasses.replace(r, notes=(*first.notes, *r.notes))
+    if r.verdict is Verdict.VERIFIED_WITHOUT_PROGRESS:
+        checked = tuple(s for s in sorted(sl.keep) if any(
+            t.subsystem == s and t.role is Role.ITERATION for t in sl.net.transitions))
+        return dataclasses.replace(
+            r, verdict=Verdict.VERIFIED, progress_ok=True, progress_requested=True,
+            progress_checked=checked, notes=(*r.notes, (
+                "progress follows from deadlock freedom: no subsystem of the group can run "
+                "on once another stops iterating, so a loss of progress would be a deadlock "
+                "of the slice")))
+    return dataclasses.replace(r, progress_requested=True)
 
 
 class _Lifted:

@@ -83,7 +83,7 @@ def compose_check(net: FlatNet, nb: NetBits, max_states: int, deadline: float | 
         budget = Budget(None if deadline is None else max(0.0, deadline - time.monotonic()))
     with budget.running("the compositional check"):
         try:
-            run = _Composer(net, nb, max_states, budget, on_step, res)
+            run = _Composer(net, nb, max_states, budget, on_step, res, detail)
             if run.verdict(reuse) and detail:
                 run.details(progress_subsystems)
         except TooLarge as e:
@@ -100,8 +100,9 @@ class _Composer:
     ``verdict``), then per subsystem the whole net again (step 2, ``details``)."""
 
     def __init__(self, net: FlatNet, nb: NetBits, max_states: int, budget: Budget,
-                 on_step: StepCallback | None, res: ComposeResult) -> None:
+                 on_step: StepCallback | None, res: ComposeResult, detail: bool = True) -> None:
         self.net, self.nb, self.max_states, self.budget = net, nb, max_states, budget
+        self.detail = detail          # step 2 follows: record the system page's composition
         self.on_step, self.res = on_step, res
         self.nodes = nodes = page_tree(net, nb)
         res.components = sum(1 for n in nodes if n.own is not None)
@@ -279,7 +280,7 @@ class _Composer:
             # only the child differs from step 1: resume the recorded composition
             whole = chain.resume(nodes[k].children.index(child[0]) + (mine is not None))
         else:
-            whole = chain.run(record=k == 0 and not keep)
+            whole = chain.run(record=k == 0 and not keep and self.detail)
         result = self.guard(whole, self.entries[k])
         if nodes[k].kind == "device":     # its places are not its agent's control places
             result = self.minimized(Lts(result.init, [f & ~BUSY for f in result.flags],
@@ -373,6 +374,9 @@ class _Chain:
         for j in order[end:]:
             self._take(j)
         hidden = self._closed(head, frozenset()) | self._closed(suffix, frozenset())
+        if self.k_root:
+            # the whole net: its flags and edges are read off once, a reduction is wasted
+            return c.product(head, suffix, hidden)
         return c.compose(head, suffix, hidden,
                          self._interfaces((head.alphabet | suffix.alphabet) - hidden))
 
