@@ -22,6 +22,7 @@ import threading
 from pathlib import Path
 from types import ModuleType
 
+from rssm_dsl.extras import hint_for
 from rssm_dsl.resources import stdlib_dir
 
 STDLIB_PACKAGE = "rssm_stdlib"
@@ -95,6 +96,7 @@ def import_module(name: str, base_dir: Path | None) -> ModuleType:
         missing = e.name or name
         if missing != name and not name.startswith(missing + ".") and missing != top:
             raise BindingError(f"module '{name}' needs '{missing}', which is not installed",
+                               hint_for(missing) or
                                f"install the Python package that provides '{missing}'") from e
         raise BindingError(f"no module '{name}' in {where}",
                            "check the spelling; user modules live next to the .rssm file") from e

@@ -1,4 +1,6 @@
-"""The built wheel ships grammar/ and stdlib/ and works in a clean virtual environment."""
+"""The built wheel ships grammar/ and stdlib/ and works in a clean virtual environment with
+the core install alone (no extras): check, compile, verify and fmt work, the environment stays
+small, and `rssmc run` names the extra it needs in one line."""
 
 from __future__ import annotations
 
@@ -40,3 +42,29 @@ def test_wheel_installs_and_compiles_in_a_clean_venv(tmp_path: Path) -> None:
     # spans of stdlib declarations name the stdlib, not a path inside site-packages
     dump = (work / "out" / "lwr4_circle.hpn.txt").read_text()
     assert "site-packages" not in dump
+    # the core install: no physics, no plots
+    site = next((env / "lib").glob("python3*/site-packages"))
+    size = sum(f.stat().st_size for f in env.rglob("*") if f.is_file())
+    print(f"core venv: {size / 1e6:.0f} MB")
+    for heavy in ("mujoco", "pinocchio", "matplotlib", "networkx"):
+        assert not (site / heavy).exists(), heavy
+    rssmc = str(env / "bin" / "rssmc")
+
+    def cli(*args: str) -> subprocess.CompletedProcess[str]:
+        return subprocess.run([rssmc, *args], cwd=work, capture_output=True, text=True,
+                              timeout=300)
+
+    assert cli("--version").stdout.startswith("rssmc ")
+    assert cli("check", "lwr4_circle.rssm").returncode == 0
+    shutil.copy(EXAMPLES / "verify" / "handover.rssm", work)
+    v = cli("verify", "handover.rssm")
+    assert v.returncode == 0 and "VERIFIED" in v.stdout, v.stdout + v.stderr
+    assert cli("fmt", "handover.rssm").returncode == 0
+    assert cli("fmt", "--check", "handover.rssm").returncode == 0
+    assert cli("check", "handover.rssm").returncode == 0
+    r = cli("run", "lwr4_circle.rssm", "--until", "0.1")
+    assert r.returncode == 2
+    lines = r.stderr.strip().splitlines()
+    assert len(lines) == 1 and "pip install 'rssmc[run]'" in lines[0], r.stderr
+    assert not (work / "out" / "lwr4_circle-run").exists()    # nothing half-written
+

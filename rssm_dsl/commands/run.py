@@ -94,10 +94,15 @@ def _run(file: Path, output: Path | None, until: float, switches: int, damping: 
          quiet: bool) -> int:
     from rssm_dsl.diagnostics import Diagnostic
     from rssm_dsl.emit.write import write_outputs
+    from rssm_dsl.extras import missing_message
     from rssm_dsl.pipeline import compile_file
     from rssm_dsl.run import RunError, RunOptions, output_files, run_experiment
     from rssm_dsl.run.video import choose_backend
 
+    absent = missing_message("rssmc run", "run")
+    if absent is not None:
+        typer.echo(absent, err=True)
+        return EXIT_USAGE
     if video is not None:
         choose_backend()                  # before anything imports mujoco
     comp = compile_file(file)
