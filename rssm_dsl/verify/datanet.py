@@ -1,4 +1,5 @@
-"""new(x) tracked in the net the verifier explores (DESIGN.md section 5; rssm_core/iteration.py).
+"""new(x) tracked in the net the verifier explores (docs/verify.md, "How new(x) is tracked";
+rssm_core/iteration.py).
 
 The flat net leaves every condition a free choice, the data cases of the partial functions
 included: from the start of a partial function any of its 2^n cases may fire, whatever the

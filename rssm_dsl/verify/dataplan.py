@@ -1,5 +1,6 @@
-"""What the flat net's transitions do with finite data, for the verifier (DESIGN.md section 5:
-"conditions over finite data are evaluated with the values tracked in the state").
+"""What the flat net's transitions do with finite data, for the verifier (docs/verify.md,
+"How values are tracked": conditions over finite data are evaluated with the values tracked
+in the state).
 
 :func:`value_plan` reads the compiled specification and says, per transition of the flat net
 (by name, so that it also holds in a slice), which tracked values it reads, which it writes and

@@ -238,7 +238,7 @@ class LassoCheck:
 def check_lasso(net: FlatNet, steps: Sequence[FlatTransition], subsystem: str,
                 values: ValuePlan | None = None, timeout: float = 120.0,
                 budget: Budget | None = None) -> LassoCheck:
-    """Confirm a loss of progress of ``subsystem`` with SPIN (issue 15, item 6): the firing
+    """Confirm a loss of progress of ``subsystem`` with SPIN: the firing
     sequence ``steps`` (the flat net's, as the report gives it) leads to its point of no
     return; from there SPIN must find no firing of an ITERATION of the subsystem (an
     assertion in each) and no deadlock (an invalid end state). SPIN explores the flat net

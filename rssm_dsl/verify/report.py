@@ -202,7 +202,8 @@ class InvariantLine:
 @dataclass(frozen=True)
 class FreeCondition:
     """A condition on data the state space leaves a free choice: every outcome is explored
-    (an over-approximation, sound for deadlock freedom; DESIGN.md section 5)."""
+    (an over-approximation, sound for deadlock freedom; docs/verify.md, "How values are
+    tracked")."""
 
     kind: str              # "terminal/error" (a behaviour's t_4 / t_out) or "switch"
     where: str             # the subsystem (behaviour), or the switch in words
@@ -336,7 +337,7 @@ class VerifyReport:
             list(self.unreachable_behaviours),
             "seconds": round(self.seconds, 3),
             "notes": list(self.notes),
-            # added with the limits (issue 15); the fields above are unchanged
+            # added with the limits (--timeout, --max-memory); the fields above are unchanged
             "headline": self.headline(),
             "properties": self.properties(),
             "progress_check": self.progress_requested,

@@ -41,7 +41,7 @@ from rssm_dsl.verify.report import (
     marking_where,
 )
 from rssm_dsl.verify.slicing import ReplayError, Slice, replay_group, run_outside, slice_net
-from rssm_dsl.verify.stalls import stall_together
+from rssm_dsl.verify.stalls import StallTest
 
 if TYPE_CHECKING:
     from rssm_dsl.verify.verifier import VerifyOptions
@@ -62,11 +62,12 @@ def verify_sliced(net: FlatNet, groups: Sequence[tuple[str, ...]], opts: VerifyO
     quick = dataclasses.replace(opts, check_progress=False)
     # smallest first: a limit reached on a large group leaves the others decided
     found: dict[int, VerifyReport] = {}
+    stalls = StallTest(net)
     for i in sorted(range(len(slices)), key=lambda i: len(slices[i].net.transitions)):
         if budget.stop is not None:
             break
         sl = slices[i]
-        if check_progress and opts.fairness == "strong" and stall_together(net, sl.keep):
+        if check_progress and opts.fairness == "strong" and stalls.together(sl.keep):
             found[i] = _by_deadlocks(sl, quick, budget, verify)
             continue
         r = _decide(sl, opts if check_progress else quick, verify)

@@ -41,48 +41,66 @@ from collections.abc import Collection
 from rssm_dsl.hpn.flat import FlatNet, Role
 
 
+class StallTest:
+    """The net's producers and consumers, indexed once; :meth:`together` per group."""
+
+    def __init__(self, net: FlatNet) -> None:
+        self.net = net
+        self.producers: list[int] = [0] * len(net.places)   # producers of each place
+        self.consumers: list[list[int]] = [[] for _ in net.places]
+        self.posts: list[list[int]] = []
+        self.iterations: dict[str, list[int]] = {}
+        self.of: dict[str, list[int]] = {}
+        for t in net.transitions:
+            pre, post = set(t.pre), set(t.post)
+            for p in post - pre:
+                self.producers[p] += 1
+            for p in pre - post:
+                self.consumers[p].append(t.index)
+            self.posts.append(sorted(post - pre))
+            if t.subsystem is not None:
+                self.of.setdefault(t.subsystem, []).append(t.index)
+                if t.role is Role.ITERATION:
+                    self.iterations.setdefault(t.subsystem, []).append(t.index)
+        # a place nobody produces holds its initial tokens only: its consumers are finite
+        self.unproduced = [t for p, n in enumerate(self.producers) if n == 0
+                           for t in self.consumers[p]]
+
+    def together(self, group: Collection[str]) -> bool:
+        """Does every subsystem of ``group`` stop for good once any one of them stops
+        iterating (the module docstring)? False when some subsystem of the group has no
+        ITERATION transition."""
+        mine = {t for s in group for t in self.of.get(s, ())}
+        for s in sorted(group):
+            seeds = self.iterations.get(s)
+            if not seeds or not self._covers(seeds, mine):
+                return False
+        return True
+
+    def _covers(self, seeds: list[int], mine: set[int]) -> bool:
+        """Is every transition of ``mine`` finite in every infinite run in which ``seeds``
+        are (the module docstring)? A worklist over the count of each place's producers not
+        yet finite, stopped as soon as ``mine`` is covered."""
+        missing = self.producers[:]
+        work = [*seeds, *self.unproduced]
+        finite: set[int] = set()
+        left = len(mine)
+        while work:
+            t = work.pop()
+            if t in finite:
+                continue
+            finite.add(t)
+            if t in mine:
+                left -= 1
+                if left == 0:
+                    return True
+            for p in self.posts[t]:
+                missing[p] -= 1
+                if missing[p] == 0:
+                    work.extend(c for c in self.consumers[p] if c not in finite)
+        return left == 0
+
+
 def stall_together(net: FlatNet, group: Collection[str]) -> bool:
-    """Does every subsystem of ``group`` stop for good once any one of them stops
-    iterating (the module docstring)? False when some subsystem of the group has no
-    ITERATION transition."""
-    members = set(group)
-    producers: list[set[int]] = [set() for _ in net.places]
-    consumers: list[list[int]] = [[] for _ in net.places]
-    posts: list[list[int]] = []
-    for t in net.transitions:
-        pre, post = set(t.pre), set(t.post)
-        for p in post - pre:
-            producers[p].add(t.index)
-        for p in pre - post:
-            consumers[p].append(t.index)
-        posts.append(sorted(post - pre))
-    mine = {t.index for t in net.transitions if t.subsystem in members}
-    for s in sorted(members):
-        seeds = [t.index for t in net.transitions
-                 if t.subsystem == s and t.role is Role.ITERATION]
-        if not seeds or not mine <= _finite_closure(seeds, posts, producers, consumers):
-            return False
-    return True
-
-
-def _finite_closure(seeds: list[int], posts: list[list[int]], producers: list[set[int]],
-                    consumers: list[list[int]]) -> set[int]:
-    """The transitions finite in every infinite run in which ``seeds`` are (the module
-    docstring): a worklist over the count of each place's producers not yet finite. A place
-    nobody produces holds its initial tokens only: its consumers are finite from the start."""
-    missing = [len(ps) for ps in producers]
-    work = list(seeds)
-    for p, count in enumerate(missing):
-        if count == 0:
-            work.extend(consumers[p])
-    finite: set[int] = set()
-    while work:
-        t = work.pop()
-        if t in finite:
-            continue
-        finite.add(t)
-        for p in posts[t]:
-            missing[p] -= 1
-            if missing[p] == 0:
-                work.extend(c for c in consumers[p] if c not in finite)
-    return finite
+    """:meth:`StallTest.together` for one group."""
+    return StallTest(net).together(group)

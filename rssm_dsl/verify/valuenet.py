@@ -1,8 +1,8 @@
-"""Finite values tracked in the net the verifier explores (DESIGN.md section 5), after new(x)
-(rssm_dsl/verify/datanet.py) and in the same way: the values become places and the
-transitions that read or write them are split into variants, so that every engine (full and
-stubborn-set search, the compositional check, progress, slices, SPIN) explores only the runs
-the data allows, with no change of its own.
+"""Finite values tracked in the net the verifier explores (docs/verify.md, "How values
+are tracked"), after new(x) (rssm_dsl/verify/datanet.py) and in the same way: the values
+become places and the transitions that read or write them are split into variants, so that
+every engine (full and stubborn-set search, the compositional check, progress, slices, SPIN)
+explores only the runs the data allows, with no change of its own.
 
 The encoding, for each tracked value ``x`` with domain D (rssm_dsl/verify/dataplan.py says
 which are tracked and what each transition does with them):
