@@ -8,7 +8,7 @@ from typing import Annotated
 import typer
 
 from rssm_dsl.commands.common import EXIT_ERRORS, EXIT_OK, FileArg, Format, FormatOpt, QuietOpt, guarded, report
-from rssm_dsl.render.playback import MAX_STEPS
+from rssm_dsl.render import MAX_STEPS
 
 
 def render_cmd(

@@ -30,10 +30,10 @@ from typing import Any
 from rssm_core.trace import TraceFormatError, parse_trace
 from rssm_dsl.diagnostics import DiagnosticBag
 from rssm_dsl.hpn.flat import FlatNet
+from rssm_dsl.render import MAX_STEPS
 from rssm_dsl.source import Span
 
 MAX_TRACE_BYTES = 256 * 1024 * 1024
-MAX_STEPS = 20_000     # each step embeds a marking (about 90 bytes for the LWR4+ example)
 _LIST_KEYS = ("counterexample", "steps", "trace", "firings", "path")
 _REPORT_KEYS = ("deadlocks", "unsafe", "progress")
 PROGRESS_CYCLES = 2

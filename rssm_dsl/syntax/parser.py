@@ -40,7 +40,7 @@ def _lark() -> Lark:
         lexer="basic",
         maybe_placeholders=True,
         transformer=Callbacks(),
-        cache=False,
+        cache=True,          # the grammar analysis, in a temp file keyed by its hash
     )
 
 
