@@ -1,4 +1,4 @@
-"""Compile-time figures (issue 2) and export figures (issue 14), on generated ring systems
+"""Compile-time figures and export figures, on generated ring systems
 (rssm_dsl.synth.ring_system: about 100 lines of specification per agent).
 
 Compile: lines of specification, the time of each phase (load+parse, check, IR) as the best
@@ -10,8 +10,9 @@ exporters whose cost grows with the net: the flattened PNML (flattening included
 PNML and the CPN Tools `.cpn` of the unflattened HPN, as `rssmc compile --emit` runs them
 (cyclic collector on), best of a few runs; then milliseconds per agent (flat when linear) and
 the growth from the smallest to the largest size next to the growth of the net. Goal: linear,
-a 100-agent system exported in under 1 s. Before the IR index (issue 14) the paged PNML and
-the CPN export scanned every table once per page: quadratic, 68 s and 65 s at 100 agents.
+a 100-agent system exported in under 1 s. Before the IR index (`HPN.index`, rssm_dsl/hpn/ir.py)
+the paged PNML and the CPN export scanned every table once per page: quadratic, 68 s and 65 s
+at 100 agents.
 
     python bench/compile.py [--sizes 1,10,100,1000] [--export-sizes 25,50,100] [--repeat 3]
 """

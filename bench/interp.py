@@ -1,4 +1,4 @@
-"""Interpreter figures (issue 4), measured in one run on this machine.
+"""Interpreter figures, measured in one run on this machine.
 
 1. Transition firings per second of the pure token game (conditions as free choices, no
    operations, no time: the verifier's abstraction), on the LWR4+ example and on a generated

@@ -1,4 +1,4 @@
-"""Language-server latency (issue 7): time from a didChange to the diagnostics published for
+"""Language-server latency: time from a didChange to the diagnostics published for
 that version, on a generated specification of about 5,000 lines. Goal: under 100 ms median.
 
 The server runs as a subprocess (`python -m rssm_dsl lsp`) and is driven over stdio like an

@@ -1,4 +1,4 @@
-"""The LWR4+ experiment's figures (issue 5), measured in one run on this machine.
+"""The LWR4+ experiment's figures, measured in one run on this machine.
 
 1. Speed: the HPN-driven run (what ``rssmc run examples/lwr4_circle.rssm`` runs: the
    interpreter executing the specification's net, c at 100 Hz, e at 1 kHz, the MuJoCo LWR4+

@@ -1,4 +1,4 @@
-"""ROS 2 backend figures (issue 6).
+"""ROS 2 backend figures.
 
 1. Generation: `rssmc ros2` on the 100-agent ring (rssm_dsl.synth.ring_system(100)): time
    to generate the workspace from a compiled specification and to write it, as the best of

@@ -1,4 +1,4 @@
-"""CLI start-up (issue 16): wall time of `rssmc check` on the LWR4+ example and of
+"""CLI start-up: wall time of `rssmc check` on the LWR4+ example and of
 `rssmc --version`, against the bare interpreter start in the same invocation (the machine is
 shared and noisy: medians of several runs, and the ratio to the baseline).
 
@@ -32,15 +32,15 @@ def main() -> None:
     ap = argparse.ArgumentParser()
     ap.add_argument("--runs", type=int, default=9)
     args = ap.parse_args()
-    wall(RSSMC + ["--version"], 1)          # warm the file cache and lark's grammar cache
-    wall(RSSMC + ["check", "examples/lwr4_circle.rssm"], 1)
+    wall([*RSSMC, "--version"], 1)          # warm the file cache and lark's grammar cache
+    wall([*RSSMC, "check", "examples/lwr4_circle.rssm"], 1)
     base = wall([sys.executable, "-c", "pass"], args.runs)
     print(f"{'command':<44} {'median ms':>10} {'minus python ms':>16}")
     print(f"{'python -c pass':<44} {base * 1000:>10.0f} {0:>16.0f}")
     for label, cmd in (("rssmc --version", ["--version"]),
                        ("rssmc check examples/lwr4_circle.rssm",
                         ["check", "examples/lwr4_circle.rssm"])):
-        t = wall(RSSMC + cmd, args.runs)
+        t = wall([*RSSMC, *cmd], args.runs)
         print(f"{label:<44} {t * 1000:>10.0f} {(t - base) * 1000:>16.0f}")
 
 

@@ -1,4 +1,4 @@
-"""Verification figures (issue 3), measured in one run:
+"""Verification figures, measured in one run:
 
 1. time to verdict of our full exploration vs SPIN's (C compile included) on the same nets of
    1e4 to 1e6 states: compiled specifications (the LWR4+ example) and generated ring
@@ -78,7 +78,7 @@ def scale(limit: float, max_n: int, skip_spin: bool) -> None:
         for label, gen in (("lean ring", lean_ring_system), ("ring", ring_system)):
             alive = {"default": True, "compositional": True, "progress": True,
                      "reduced": True, "full": True, "spin": not skip_spin}
-            # powers of two, and the issue's goal of 100 agents
+            # powers of two, and 100 agents (the scale the verifier aims at)
             sizes = sorted({2 ** i for i in range(max_n.bit_length()) if 2 ** i <= max_n}
                            | ({100} if max_n >= 100 else set()))
             for n in sizes:

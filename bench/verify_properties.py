@@ -1,4 +1,4 @@
-"""Time to verdict of the properties stated in a spec (issue 15, item 5): the handover of
+"""Time to verdict of the properties stated in a spec: the handover of
 examples/verify/ with two state invariants over its arm and base added (one holds, one is
 violated), and lockstep with its own two properties; `rssmc verify` as a user runs it, in
 its own process, compilation included.

@@ -1,5 +1,5 @@
-"""What `rssmc verify` does on specifications written the way a robotics engineer writes them
-(issue 15): the four systems of examples/verify/ with an expected verdict in their header
+"""What `rssmc verify` does on specifications written the way a robotics engineer writes them:
+the four systems of examples/verify/ with an expected verdict in their header
 (handover_buggy, handover, rover, palletizer; tests/verify/test_slicing.py pins the verdicts).
 
     python bench/verify_realistic.py [--limit 60] [--reduction auto] [--no-progress-check]

@@ -1,5 +1,5 @@
-"""Time to verdict on mixed-mode rings of control subsystems (issue 15, item 3), progress
-check on, against SPIN on the same flat nets.
+"""Time to verdict on mixed-mode rings of control subsystems, progress check on,
+against SPIN on the same flat nets.
 
 The rings are `rssm_dsl.synth.mixed_ring_system(n, links)`: c of a_k sends to c of a_{k+1}
 in every iteration; the links cycle through ``links`` (B blocking on both ends, N

@@ -23,7 +23,7 @@ app = typer.Typer(
     name="rssmc",
     help="Compile, check and verify RSSM robot-controller specifications (hierarchical Petri nets).",
     no_args_is_help=True,
-    add_completion=False,
+    add_completion=True,         # --install-completion, --show-completion (bash, zsh, fish, PowerShell)
     pretty_exceptions_enable=False,
 )
 

@@ -23,7 +23,7 @@ for _module, _extra in EXTRA_OF.items():
 
 
 def install_command(extra: str) -> str:
-    return f"pip install 'rssmc[{extra}]'"
+    return f"pip install 'rssmc[{extra}]' (in a checkout: pip install -e '.[{extra}]')"
 
 
 def hint_for(module: str) -> str | None:

@@ -8,7 +8,8 @@ bookkeeping done when it fires). Expressions are compiled once (:mod:`compile_ex
 operations and device classes are resolved once (:mod:`rssm_dsl.bindings`). Every problem
 that prevents the run is collected and raised as one :class:`SetupError`.
 
-What the elements mean (paper IV, DESIGN.md section 4):
+What the elements mean (the RSSM HPN paper, section IV; docs/semantics.md, "One iteration"
+and "Communication modes"):
 
 | IR element                                  | run-time meaning                               |
 |---------------------------------------------|------------------------------------------------|

@@ -23,13 +23,15 @@ from typing import TYPE_CHECKING, Any
 
 import numpy as np
 
+from rssm_dsl.extras import install_command
+
 if TYPE_CHECKING:
     from rssm_dsl.run.experiment import Experiment
 
 INSTALL_GL = ("install an OpenGL backend for offscreen rendering: on Debian/Ubuntu "
               "`apt-get install libegl1 libegl-mesa0 libgl1-mesa-dri` (MUJOCO_GL=egl), or "
               "`apt-get install libosmesa6` and set MUJOCO_GL=osmesa")
-INSTALL_AV = "install PyAV to encode MP4: pip install 'rssmc[video]' (or pip install av)"
+INSTALL_AV = f"install PyAV to encode MP4: {install_command('video')}"
 RGB = {0: (0.12, 0.47, 0.71), 1: (0.84, 0.15, 0.16), 2: (0.17, 0.63, 0.17)}
 
 

@@ -156,3 +156,18 @@ def test_internal_errors_are_reported_not_raised(monkeypatch: pytest.MonkeyPatch
     result = CliRunner().invoke(app, ["check", str(LWR4)])
     assert result.exit_code == 70
     assert "internal error [E900]" in result.output and "simulated bug" in result.output
+
+
+def test_version_and_shell_completion() -> None:
+    """`rssmc --version`, and the completion script typer generates for the shell."""
+    import subprocess
+    import sys
+
+    from rssm_dsl import __version__
+
+    version = subprocess.run([sys.executable, "-m", "rssm_dsl", "--version"],
+                             capture_output=True, text=True, timeout=60)
+    assert version.stdout.strip() == f"rssmc {__version__}"
+    script = subprocess.run([sys.executable, "-m", "rssm_dsl", "--show-completion", "bash"],
+                            capture_output=True, text=True, timeout=60)
+    assert script.returncode == 0 and "complete" in script.stdout, script.stderr

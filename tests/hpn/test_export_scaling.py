@@ -1,4 +1,4 @@
-"""The exporters do work proportional to the net (issue 14): no per-page scan of the tables.
+"""The exporters do work proportional to the net: no per-page scan of the tables.
 
 Performance is measured by benchmarks (bench/compile.py prints the export times), not by
 timed tests; here the work is counted instead, exactly: the Python events (calls, lines,

@@ -1,4 +1,4 @@
-"""The IR's structured names and indexes (issue 14).
+"""The IR's structured names and indexes.
 
 The indexes must agree with a brute-force scan of the tables on every example, follow every
 change to the tables, and the structured names must print as the ids and say what the ids

@@ -1,6 +1,7 @@
-"""The one table of expected behaviour (issue 14, item 2): what RSSM's communication modes,
+"""The one table of expected behaviour: what RSSM's communication modes,
 arrangements, behaviour switching, terminal and error conditions and value operations mean,
-written down once, from /work/shared/DESIGN.md (sections 4 and 6) and docs/language.md.
+written down once, from the RSSM HPN paper (sections III and IV), docs/language.md and
+docs/semantics.md ("One iteration", "Communication modes").
 
 Three runners check the same rows: the interpreter (test_interp.py, deterministic simulated
 clock), the verifier's state space of the flat net (test_verify.py, as reachability questions
@@ -122,7 +123,7 @@ def mode_row(producer: Mode, consumer: Mode, situation: Situation) -> ModeRow:
 @dataclass(frozen=True)
 class PatternRow:
     """The fixed order of one iteration: P^f (transition function) -> P_snd (send) ->
-    i := i + 1 -> P_rcv (receive) -> terminal and error conditions (DESIGN.md section 4)."""
+    i := i + 1 -> P_rcv (receive) -> terminal and error conditions (docs/semantics.md#one-iteration)."""
 
     id: str
     statement: str

@@ -68,7 +68,7 @@ class NetBuilder:
             subsystems=tuple(subsystems))
 
 
-# --- communication modes (DESIGN.md section 4) -------------------------------------------
+# --- communication modes (docs/semantics.md#communication-modes) -----------------------
 
 def channel(b: NetBuilder, ch: str) -> tuple[int, int]:
     """The fused places of channel ``ch``: (full, empty), initially empty."""

@@ -1,4 +1,4 @@
-"""Honest limits (issue 15): `--timeout`, `--max-memory` and Ctrl-C end a run within a second
+"""Honest limits: `--timeout`, `--max-memory` and Ctrl-C end a run within a second
 or two with the partial report and the documented exit code; a run without the progress
 check never passes for a full success. Timing bounds are generous: the machine is shared."""
 

@@ -1,4 +1,4 @@
-"""The realistic specifications of examples/verify/ (issue 15): they compile clean, simulate,
+"""The realistic specifications of examples/verify/: they compile clean, simulate,
 and the buggy handover's two control subsystems freeze in a simulation while the corrected
 one's keep going. Their verdicts: tests/verify/test_slicing.py; time to verdict:
 bench/verify_realistic.py."""

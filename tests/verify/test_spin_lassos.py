@@ -1,4 +1,4 @@
-"""SPIN on progress verdicts (issue 15, item 6): from the point of no return of every loss of
+"""SPIN on progress verdicts: from the point of no return of every loss of
 progress the verifier reports, SPIN finds no iteration of the subsystem and no deadlock; from
 a marking where the subsystem can still iterate, SPIN finds the iteration."""
 

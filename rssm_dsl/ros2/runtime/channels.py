@@ -1,4 +1,5 @@
-"""The four communication modes of RSSM on ROS 2 topics (docs/ros2.md, "Communication modes").
+"""The four communication modes of RSSM on ROS 2 topics (docs/ros2.md of rssmc,
+"Communication modes on ROS 2").
 
 A channel joins a producer's output buffer to a consumer's input buffer. On the wire it is
 one data topic, ``/<agent>/<node>/<buffer>`` of the producer, carrying ``<Type>Sample``
