@@ -50,6 +50,8 @@ Verifier = Callable[[FlatNet, "VerifyOptions"], VerifyReport]
 CYCLE_PASSES = 6            # replays of a slice's cycle to find the whole net's cycle
 STUBBORN_STATES = 100_000   # a slice's stubborn-set search at most
 SMALL_SLICE = 10_000        # a slice explored whole when it has no more states
+COMPOSE_SHARE = 1 / 2       # of the time left, for each later try on a slice
+MANY = 4                    # subsystems: a group of this many is composed first
 
 
 def verify_sliced(net: FlatNet, groups: Sequence[tuple[str, ...]], opts: VerifyOptions,
@@ -97,13 +99,39 @@ def _decide(sl: Slice, opts: VerifyOptions, verify: Verifier) -> VerifyReport:
 def _by_deadlocks(sl: Slice, quick: VerifyOptions, budget: Budget,
                   verify: Verifier) -> VerifyReport:
     """A group that stalls together (``stalls``): its slice's deadlock check decides its
-    progress too. Explored whole or by stubborn sets (``_decide``), else compositionally
-    (safeness and deadlocks only: one composition of the slice, no per-subsystem one)."""
-    r = _decide(sl, quick, verify)
-    if r.verdict is Verdict.INCONCLUSIVE and budget.stop is None:
+    progress too. Explored whole when small; else by stubborn sets and compositionally (one
+    composition of the slice, no per-subsystem one), the composition first for a group of
+    ``MANY`` subsystems or more (a ring: the stubborn sets lose in the races of many alike
+    subsystems, the composition decides it in a second or two), each at most
+    ``COMPOSE_SHARE`` of the time left. A deadlock the composition finds gets its firing
+    sequence from the stubborn sets."""
+    r = verify(sl.net, dataclasses.replace(quick, reduction="off", max_states=SMALL_SLICE))
+    if not r.complete and r.verdict is not Verdict.VIOLATED and budget.stop is None:
+        notes = r.notes
+        # the place invariants of the first try hold for the composition (the stubborn
+        # sets compute them again: the safe places they prove make the stubborn sets smaller)
+        composed = dataclasses.replace(quick, invariants=False, reduction="compositional")
+        stubborn = dataclasses.replace(quick, max_states=min(quick.max_states, STUBBORN_STATES))
+        tries = [composed, stubborn] if len(sl.keep) >= MANY else [stubborn, composed]
         first = r
-        r = verify(sl.net, dataclasses.replace(quick, reduction="compositional"))
-        r = dataclasses.replace(r, notes=(*first.notes, *r.notes))
+        for opts in tries:
+            if opts is composed and len(sl.keep) == 1:
+                continue            # one subsystem: no races for the stubborn sets to lose
+            left = budget.remaining()
+            with budget.capped(COMPOSE_SHARE * left if left is not None else float("inf")):
+                r = verify(sl.net, opts)
+            notes = (*notes, *r.notes)
+            if budget.stop is not None or (r.complete and r.verdict is not Verdict.VIOLATED) \
+                    or r.deadlocks:
+                break
+        r = dataclasses.replace(r, notes=notes)
+        if not r.invariants:
+            r = dataclasses.replace(
+                r, invariants=first.invariants, invariants_complete=first.invariants_complete,
+                invariants_message=first.invariants_message,
+                uncovered_places=first.uncovered_places)
+    # the slice's own check ran without progress on purpose: its notes must not say so
+    r = dataclasses.replace(r, notes=tuple(n for n in r.notes if "--no-progress-check" not in n))
     if r.verdict is Verdict.VERIFIED_WITHOUT_PROGRESS:
         checked = tuple(s for s in sorted(sl.keep) if any(
             t.subsystem == s and t.role is Role.ITERATION for t in sl.net.transitions))

@@ -159,6 +159,7 @@ def slice_net(net: FlatNet, keep: Sequence[str]) -> Slice:
         if t.pre and not pre:
             continue            # plumbing waiting only for what is gone
         kept_t.append((t, pre, post))
+    kept_t = _prune(kept_t, net.final, net.places)
     every = channels(net)
     border = [c for c in every if (c.producer in group) != (c.consumer in group)]
     # a free channel inside the group is cut in two: the producer's end gets places of its
@@ -228,6 +229,35 @@ def slice_net(net: FlatNet, keep: Sequence[str]) -> Slice:
                          for c in net.conditions if c.transition in t_index),
         new_sites=new_sites)
     return Slice(net, sliced, group, tuple(transition_of), place_of)
+
+
+def _prune(kept: list[tuple[FlatTransition, tuple[int, ...], tuple[int, ...]]],
+           final: frozenset[int], places: tuple[FlatPlace, ...],
+           ) -> list[tuple[FlatTransition, tuple[int, ...], tuple[int, ...]]]:
+    """Drop the system's plumbing for the agents the group is not in: a transition of no
+    subsystem that puts nothing into the slice and is the only consumer of what it takes
+    only empties places nobody else reads (the start of another agent), and a place of no
+    subsystem that no transition of the slice takes and that is not final only collects
+    tokens. Removing them
+    changes no move of the group and no deadlock of the slice, and keeps each slice small as
+    the system grows (those places lie in the slices of their own agents' groups)."""
+    while True:
+        consumers: dict[int, int] = {}
+        for _, pre, _ in kept:
+            for p in pre:
+                consumers[p] = consumers.get(p, 0) + 1
+        idle = [i for i, (t, pre, post) in enumerate(kept)
+                if t.subsystem is None and not post and pre
+                and all(consumers[p] == 1 for p in pre)]
+        if idle:
+            gone = set(idle)
+            kept = [k for i, k in enumerate(kept) if i not in gone]
+            continue
+        sinks = {p for _, _, post in kept for p in post
+                 if p not in consumers and p not in final and places[p].subsystem is None}
+        if not sinks:
+            return kept
+        kept = [(t, pre, tuple(p for p in post if p not in sinks)) for t, pre, post in kept]
 
 
 def _environment(net: FlatNet, c: Channel, writes: bool, index: int, full: int,
