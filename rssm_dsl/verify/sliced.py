@@ -27,7 +27,7 @@ from __future__ import annotations
 
 import dataclasses
 import time
-from collections.abc import Callable, Sequence
+from collections.abc import Callable, Collection, Sequence
 from typing import TYPE_CHECKING
 
 from rssm_dsl.hpn.flat import FlatNet, FlatTransition, Role
@@ -221,8 +221,17 @@ class _Lifted:
         try:
             fn(sl, cx)
         except ReplayError as e:
-            self.failed.append(f"{what} found in the slice of {', '.join(sorted(sl.keep))} "
+            self.failed.append(f"{what} found in the slice of {_names(sl.keep)} "
                                f"was not reproduced in the whole net: {e}")
+
+
+def _names(group: Collection[str], shown: int = 4) -> str:
+    """A group's subsystems for a note: all of a small group, the first few of a large one
+    (a ring of 100 agents would fill the report)."""
+    names = sorted(group)
+    if len(names) <= shown + 1:
+        return ", ".join(names)
+    return f"{', '.join(names[:shown])} and {len(names) - shown} more"
 
 
 def _mask(m: frozenset[int]) -> int:
@@ -255,7 +264,7 @@ def _combine(net: FlatNet, groups: Sequence[tuple[str, ...]],
     reports = [r for _, r in parts]
     done = len(parts) == len(groups)
     safe, deadlock_free, progress_ok, verdict = _verdicts(reports, lifted, done, check_progress)
-    shared = [f"{', '.join(g)} ({r.method}, {r.states:,} states)"
+    shared = [f"{_names(g)} ({r.method}, {r.states:,} states)"
               for g, (_, r) in zip(groups, parts, strict=False) if len(g) > 1]
     alone = [r.states for g, (_, r) in zip(groups, parts, strict=False) if len(g) == 1]
     if alone:
@@ -266,7 +275,7 @@ def _combine(net: FlatNet, groups: Sequence[tuple[str, ...]],
     for (sl, r) in parts:
         if len(sl.keep) == 1 and r.verdict is not Verdict.INCONCLUSIVE:
             continue            # the free-running ones: their notes say nothing new
-        label = ", ".join(sorted(sl.keep))
+        label = _names(sl.keep)
         notes += [f"[{label}] {n}" for n in r.notes]
     why = next((r.why_undecided for r in reports if r.why_undecided), None)
     if why is None and lifted.failed:

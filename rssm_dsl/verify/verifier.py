@@ -19,7 +19,7 @@ Pipeline:
    - ``"auto"`` (default): a first full exploration, ``slice_after_seconds`` and
      ``slice_after_states`` at most; a net that does not fit and has several blocking groups
      is verified group by group (``sliced``: each slice explored whole when small, else by
-     stubborn sets; violations replayed in the whole net), with a third of the time left;
+     stubborn sets; violations replayed in the whole net), with two thirds of the time left;
      when that leaves the verdict open, the whole net: full exploration up to
      ``auto_full_states`` markings (and ``auto_full_words`` of memory; it gives dead
      transitions and unreachable behaviours too; 0: none), then the compositional check;
@@ -75,7 +75,7 @@ if TYPE_CHECKING:
 
 REDUCTIONS = ("auto", "on", "off", "compositional")
 SMALL_NET = 400        # places: below, the minimal semiflows are always enumerated
-SLICES_SHARE = 1 / 3   # of the time left, for the sliced verification (the rest: whole net)
+SLICES_SHARE = 2 / 3   # of the time left, for the sliced verification (the rest: whole net)
 
 
 @dataclass(frozen=True)
@@ -133,7 +133,7 @@ def verify(net: FlatNet, options: VerifyOptions | None = None) -> VerifyReport:
                 return dataclasses.replace(whole, stop=budget.stop)
             inner = dataclasses.replace(opts, slicing=False, budget=budget, reduction="on")
             left = budget.remaining()
-            # the slices get a third of the time left: the whole net may need the rest
+            # the slices get two thirds of the time left: the whole net may need the rest
             with budget.capped(SLICES_SHARE * left if left is not None else float("inf")):
                 sliced = verify_sliced(net, groups, inner, budget, verify)
             if sliced.verdict is not Verdict.INCONCLUSIVE or budget.stop is not None:
