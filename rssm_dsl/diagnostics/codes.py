@@ -56,6 +56,7 @@ CODES: tuple[Code, ...] = (
     Code("E212", "unknown-enum-member", _E, "a member that the enum does not have"),
     Code("E213", "empty-range", _E, "a range type whose low bound is above its high bound"),
     Code("E214", "value-out-of-range", _E, "a constant outside the range of the type it is stored in"),
+    Code("E215", "call-before-the-run", _E, "an external operation called in an initial value or a constant"),
     # structure (paper III-A)
     Code("E301", "control-count", _E, "an agent needs exactly one control subsystem"),
     Code("E302", "link-not-allowed", _E, "a link between subsystems the methodology forbids"),

@@ -181,7 +181,7 @@ class DeclarationPass:
         if not self._declare(d.name, d.name_span):
             return
         want = self.resolve_type(d.type) if d.type is not None else None
-        scope = Scope(self.g.symbols(), {})
+        scope = Scope(self.g.symbols(), self.g.externs, no_calls="a constant")
         got = self.checker.check(d.value, scope, want)
         if got is None or (d.type is not None and want is None):
             self.g.broken[d.name] = Symbol("const", None, d.name_span)

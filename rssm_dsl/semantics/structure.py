@@ -159,7 +159,7 @@ class StructurePass:
             local[name] = span
             return True
 
-        init_scope = Scope(self.g.symbols(), self.g.externs)
+        init_scope = Scope(self.g.symbols(), self.g.externs, no_calls="an initial value")
         for p in params:
             if declare(p.name, p.name_span):
                 v = self._variable(p.name, p.span, p.type, p.value, init_scope, "param")

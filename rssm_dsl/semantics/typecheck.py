@@ -116,6 +116,9 @@ class Scope:
     inputs: tuple[str, ...] = ()
     reads: set[str] = field(default_factory=set)
     extra: dict[str, Symbol] = field(default_factory=dict)  # locals (let), conditions
+    # where external operations cannot be called (initial values and constants are computed
+    # before the run, by every backend alike), e.g. "the initial value of param 'k'"
+    no_calls: str | None = None
 
     def lookup(self, name: str) -> Symbol | None:
         return self.extra.get(name) or self.symbols.get(name)
@@ -358,6 +361,12 @@ class ExprChecker:
             return self._new(e, scope)
         ext = scope.externs.get(e.function)
         if ext is not None:
+            if scope.no_calls is not None:
+                self.bag.error("E215", f"external operation {e.function}() cannot be called "
+                               f"in {scope.no_calls}", e.span,
+                               "initial values and constants are computed before the run, "
+                               "without Python: compute it in the first iteration (`update "
+                               "memory`), or write the value")
             if len(e.args) != len(ext.params):
                 self.bag.error("E204", f"{e.function}() takes {len(ext.params)} argument(s), "
                                f"{len(e.args)} given", e.span, related=())
