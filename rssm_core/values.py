@@ -57,9 +57,25 @@ from __future__ import annotations
 
 import math
 from collections.abc import Callable, Mapping
-from typing import Any
+from types import ModuleType
+from typing import TYPE_CHECKING, Any
 
-import numpy as np
+
+class _Numpy(ModuleType):
+    """numpy, imported at its first use: checking a specification that has no ``float[N]``
+    value never needs it, and importing it is a third of `rssmc check`'s start-up."""
+
+    def __getattr__(self, name: str) -> Any:
+        import numpy
+
+        globals()["np"] = numpy
+        return getattr(numpy, name)
+
+
+if TYPE_CHECKING:
+    import numpy as np
+else:
+    np = _Numpy("numpy")
 
 Desc = tuple[Any, ...]
 Convert = Callable[[Any], Any]
@@ -69,7 +85,6 @@ INT: Desc = ("int",)
 FLOAT: Desc = ("float",)
 INT_MIN = -(2**63)
 INT_MAX = 2**63 - 1
-_F64 = np.dtype(np.float64)
 
 
 class OperationError(Exception):
@@ -240,7 +255,7 @@ def _float_array(d: Desc) -> Convert:
         if isinstance(v, np.ndarray):
             if v.shape != shape or v.dtype.kind not in "fiu":
                 raise ValueTypeError(d, v)
-            if v.dtype is _F64 and not v.flags.writeable:
+            if v.dtype == np.float64 and not v.flags.writeable:
                 return v
             return freeze(v.astype(np.float64, copy=True))
         if not isinstance(v, list | tuple) or len(v) != size:

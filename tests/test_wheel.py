@@ -4,6 +4,7 @@ small, and `rssmc run` names the extra it needs in one line."""
 
 from __future__ import annotations
 
+import re
 import shutil
 import subprocess
 import sys
@@ -46,7 +47,12 @@ def test_wheel_installs_and_compiles_in_a_clean_venv(tmp_path: Path) -> None:
     site = next((env / "lib").glob("python3*/site-packages"))
     size = sum(f.stat().st_size for f in env.rglob("*") if f.is_file())
     print(f"core venv: {size / 1e6:.0f} MB")
-    for heavy in ("mujoco", "pinocchio", "matplotlib", "networkx"):
+    quoted = re.search(r"a (\d+) MB venv", (ROOT / "README.md").read_text(encoding="utf-8"))
+    assert quoted is not None
+    assert abs(size / 1e6 - int(quoted[1])) <= 0.05 * int(quoted[1]), (
+        f"README.md says the core venv is {quoted[1]} MB; it is {size / 1e6:.0f} MB")
+    # typer-slim: typer on click alone, without rich and pydantic (23 MB, 100 ms a start)
+    for heavy in ("mujoco", "pinocchio", "matplotlib", "networkx", "pydantic", "rich"):
         assert not (site / heavy).exists(), heavy
     rssmc = str(env / "bin" / "rssmc")
 

@@ -12,3 +12,6 @@ COMMANDS: tuple[str, ...] = (
     "lsp",
     "ros2",
 )
+
+# a command that lives in another command's module (the default: the module of its own name)
+MODULE_OF: dict[str, str] = {"check": "compile"}

@@ -147,13 +147,13 @@ def test_internal_errors_are_reported_not_raised(monkeypatch: pytest.MonkeyPatch
     from typer.testing import CliRunner
 
     import rssm_dsl.pipeline
-    from rssm_dsl.cli import app
+    from rssm_dsl.cli import make_app
 
     def boom(*args: object, **kwargs: object) -> None:
         raise RuntimeError("simulated bug")
 
     monkeypatch.setattr(rssm_dsl.pipeline, "compile_file", boom)
-    result = CliRunner().invoke(app, ["check", str(LWR4)])
+    result = CliRunner().invoke(make_app(), ["check", str(LWR4)])
     assert result.exit_code == 70
     assert "internal error [E900]" in result.output and "simulated bug" in result.output
 

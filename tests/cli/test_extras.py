@@ -14,7 +14,7 @@ from typer.testing import CliRunner
 
 from rssm_dsl import extras
 from rssm_dsl.bindings import BindingError, import_module
-from rssm_dsl.cli import app
+from rssm_dsl.cli import make_app
 from tests.conftest import EXAMPLES
 
 
@@ -36,7 +36,7 @@ def test_run_without_the_run_extra_says_which_in_one_line(
         monkeypatch: pytest.MonkeyPatch, tmp_path: Path) -> None:
     _without(monkeypatch, "mujoco", "pinocchio")
     out = tmp_path / "out"
-    result = CliRunner().invoke(app, ["run", str(EXAMPLES / "lwr4_circle.rssm"), "-o", str(out),
+    result = CliRunner().invoke(make_app(), ["run", str(EXAMPLES / "lwr4_circle.rssm"), "-o", str(out),
                                       "--until", "0.01"])
     assert result.exit_code == 2
     lines = result.output.strip().splitlines()
