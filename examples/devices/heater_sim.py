@@ -14,18 +14,23 @@ LOSS = 2.0         # W/K: the heat it loses to the room per °C above the room
 
 class Heater(DeviceBase):
     """A heating element: `power` (0..1) of its `watts` heats it, it cools towards the room's
-    temperature (the device type's `param ambient`); it measures its `temperature`."""
+    temperature `ambient`; it measures its `temperature`. `watts` and `ambient` are the
+    device type's parameters, with the instance's own values where the specification gives
+    them (`real effector big: Heater(watts = 2000.0)`); an option of the run,
+    `--device-option ID:watts=...`, overrides `watts`."""
 
     def __init__(self, spec: DeviceSpec) -> None:
         super().__init__(spec)                       # keeps spec, starts self.time at 0
         self.ambient = float(spec.params["ambient"])
         self.temperature = float(spec.initial["temperature"])
         self.power = 0.0
-        text = self.option("watts", "500")           # --device-option ID:watts=...
-        try:
-            self.watts = float(text or "")
-        except ValueError:
-            raise DeviceConfigError(f"option watts: '{text}' is not a number") from None
+        self.watts = float(spec.params["watts"])
+        text = self.option("watts")                  # --device-option ID:watts=...
+        if text is not None:
+            try:
+                self.watts = float(text)
+            except ValueError:
+                raise DeviceConfigError(f"option watts: '{text}' is not a number") from None
 
     def receive(self, buffer: str, value: Any) -> None:
         if buffer == "power":                        # only when a new command arrived

@@ -67,6 +67,7 @@ CODES: tuple[Code, ...] = (
     Code("E307", "missing-peer", _E, "a subsystem buffer must name its peer"),
     Code("E308", "device-kind-mismatch", _E, "a device instance of the wrong kind"),
     Code("E309", "wrong-direction-word", _E, "an input names its peer with `to` or an output with `from`"),
+    Code("E310", "unknown-device-parameter", _E, "an instance gives a parameter its device type does not declare"),
     # canonical decomposition
     Code("E401", "write-outside-target", _E, "a partial function writes outside its own target"),
     Code("E402", "write-to-input", _E, "an input buffer is written"),

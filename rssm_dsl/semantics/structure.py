@@ -2,7 +2,7 @@
 
 from __future__ import annotations
 
-from dataclasses import dataclass, field
+from dataclasses import dataclass, field, replace
 
 from rssm_core.modes import Mode
 from rssm_dsl.diagnostics import DiagnosticBag, Related
@@ -227,12 +227,37 @@ class StructurePass:
         shell = Shell(agent, decl.kind.value, d.name, True, d.span,
                       self._frequency(d.frequency or decl.frequency), device_type=decl.name,
                       binding=decl.binding.binding if decl.binding else None)
-        self._fill(shell, decl.params, (), decl.buffers)
+        self._fill(shell, self._instance_params(d, decl), (), decl.buffers)
         for b in decl.buffers:
             if b.peer is not None:
                 self.bag.error("E302", "a device buffer does not name its peer; the virtual "
                                "subsystem names the device", b.peer.span)
         return shell
+
+
+    def _instance_params(self, d: ast.DeviceInstance,
+                         decl: ast.DeviceDecl) -> tuple[ast.ParamDecl, ...]:
+        """The device type's parameters, with the values this instance gives
+        (``real effector big: Heater(watts = 2000.0)``) in place of the type's."""
+        declared = {p.name: p for p in decl.params}
+        given: dict[str, ast.DeviceArg] = {}
+        for a in d.args:
+            if a.name not in declared:
+                guess = did_you_mean(a.name, declared)
+                names = ", ".join(declared) or "none"
+                self.bag.error("E310", f"device type {decl.name} has no parameter '{a.name}'",
+                               a.name_span,
+                               f"did you mean '{guess}'?" if guess else
+                               f"its parameters: {names}",
+                               related=(Related(decl.name_span, "device type declared here"),))
+            elif a.name in given:
+                self.bag.error("E101", f"parameter '{a.name}' of {d.name} is given twice",
+                               a.name_span,
+                               related=(Related(given[a.name].name_span, "first given here"),))
+            else:
+                given[a.name] = a
+        return tuple(replace(p, value=given[p.name].value) if p.name in given else p
+                     for p in decl.params)
 
 
 def _usual_peer(kind: ast.SubsystemKind, direction: ast.Direction) -> str:

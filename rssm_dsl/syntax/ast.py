@@ -392,6 +392,17 @@ class SubsystemDecl:
 
 
 @dataclass(frozen=True, slots=True)
+class DeviceArg:
+    """``NAME = VALUE`` in ``real effector big: Heater(watts = 2000.0)``: this instance's
+    value of the device type's parameter NAME."""
+
+    span: Span
+    name: str
+    name_span: Span
+    value: Expr
+
+
+@dataclass(frozen=True, slots=True)
 class DeviceInstance:
     span: Span
     kind: DeviceKind
@@ -400,6 +411,7 @@ class DeviceInstance:
     device: str
     device_span: Span
     frequency: Frequency | None
+    args: tuple[DeviceArg, ...] = ()
 
 
 @dataclass(frozen=True, slots=True)

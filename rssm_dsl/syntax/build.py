@@ -255,7 +255,13 @@ class AstBuilder:
 
     def r_device_instance(self, t: _Node, k: list[Any]) -> ast.DeviceInstance:
         return ast.DeviceInstance(self._span(t), k[0], str(k[1]), self._tok(k[1]), str(k[2]),
-                                  self._tok(k[2]), k[3])
+                                  self._tok(k[2]), k[4], k[3] or ())
+
+    def r_device_args(self, t: _Node, k: list[Any]) -> tuple[ast.DeviceArg, ...]:
+        return tuple(a for a in k if a is not None)
+
+    def r_device_arg(self, t: _Node, k: list[Any]) -> ast.DeviceArg:
+        return ast.DeviceArg(self._span(t), str(k[0]), self._tok(k[0]), k[1])
 
     def r_frequency(self, t: _Node, k: list[Any]) -> ast.Frequency:
         value = k[0].value

@@ -65,9 +65,15 @@ def settled(watts: float) -> float:
     return float((watts * target / 10 + sim.LOSS * ambient) / (watts / 10 + sim.LOSS))
 
 
+# big has 2000 W from the specification (its own value of the type's parameter watts), small
+# the type's 500 W; options of the run override the parameter of either instance
+RUNS = {"big": (), "small": ("--device-option", "a1.E.small:watts=2000",
+                             "--device-option", "a1.E.big:watts=500")}
+
+
 @pytest.mark.parametrize("hot", ["big", "small"])
 def test_the_instance_given_more_power_gets_hot_first(hot: str, tmp_path: Path) -> None:
-    out, events = simulate(tmp_path, 5, "--device-option", f"a1.E.{hot}:watts=2000")
+    out, events = simulate(tmp_path, 5, *RUNS[hot])
     (switch,) = switches(events)
     other = "small" if hot == "big" else "big"
     assert (switch["subsystem"], switch["from"], switch["to"]) == ("a1.c", "warming",
@@ -90,7 +96,7 @@ def test_the_instance_given_more_power_gets_hot_first(hot: str, tmp_path: Path) 
 
 
 def test_each_heater_settles_where_the_extern_says(tmp_path: Path) -> None:
-    _, events = simulate(tmp_path, 30, "--device-option", "a1.E.big:watts=2000")
+    _, events = simulate(tmp_path, 30)
     small, big = values(events, TO_C)[-1]
     assert small == pytest.approx(settled(500.0), abs=0.01)      # 58.5 degrees
     assert big == pytest.approx(settled(2000.0), abs=0.01)       # 59.6 degrees
@@ -111,7 +117,7 @@ def test_a_bad_option_is_reported_at_the_device_before_the_run() -> None:
     assert r.returncode == 1
     assert "error[E801]: device a1.E.big (heater_sim:Heater): option watts: 'lots' is not a " \
            "number" in r.stderr
-    assert "heaters.rssm:66:19" in r.stderr
+    assert "heaters.rssm:69:19" in r.stderr
     assert "Traceback" not in r.stderr + r.stdout
     r = rssmc("simulate", EXAMPLE.relative_to(ROOT), "--until", "1",
               "--device-option", "a1.E.huge:watts=3")

@@ -44,6 +44,7 @@ SPEC = _Device(
     },
     params=(
         _Param('ambient', T0, 20.0),
+        _Param('watts', T0, 2000.0),
     ),
 )
 

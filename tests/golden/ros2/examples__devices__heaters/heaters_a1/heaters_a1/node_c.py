@@ -63,14 +63,14 @@ def cond_1_1(st: State) -> bool:
     # terminal small_hot when temperatures[0] >= hot
     v_hot = st.v_hot
     v_temperatures = st.v_temperatures
-    return (_rt.index(v_temperatures, 0, 2, True, 'examples/devices/heaters.rssm:24:33') >= v_hot)
+    return (_rt.index(v_temperatures, 0, 2, True, 'examples/devices/heaters.rssm:27:33') >= v_hot)
 
 
 def cond_1_2(st: State) -> bool:
     # terminal big_hot when temperatures[1] >= hot
     v_hot = st.v_hot
     v_temperatures = st.v_temperatures
-    return (_rt.index(v_temperatures, 1, 2, True, 'examples/devices/heaters.rssm:25:31') >= v_hot)
+    return (_rt.index(v_temperatures, 1, 2, True, 'examples/devices/heaters.rssm:28:31') >= v_hot)
 
 
 def cond_2_1(st: State) -> bool:
@@ -107,9 +107,9 @@ def iterate_1(r: _Runner) -> _Iteration:
 def switch_1(st: State, conds: Mapping[str, bool]) -> str | None:
     # after warming: the first switch whose condition holds
     c_big_hot = conds.get('big_hot', False)
-    if c_big_hot:  # switch warming -> big_first, examples/devices/heaters.rssm:37
+    if c_big_hot:  # switch warming -> big_first, examples/devices/heaters.rssm:40
         return 'big_first'
-    return 'small_first'  # otherwise: switch warming -> small_first, examples/devices/heaters.rssm:38
+    return 'small_first'  # otherwise: switch warming -> small_first, examples/devices/heaters.rssm:41
 
 
 # ---------------------------------------------------------------- behaviour big_first: P^B[1,c,big_first]

@@ -69,23 +69,23 @@ def _initial(p: Mapping[str, Any]) -> State:
 
 
 def f_1_1_1(st: State, stage: dict[str, Any]) -> None:
-    # regulate: update small_p, examples/devices/heaters.rssm:50
+    # regulate: update small_p, examples/devices/heaters.rssm:53
     v_small_t = st.v_small_t
     v_target = st.v_target
-    v_small_p = _rt.call(x_heat_command, CV0, 'heat_command', 'examples/devices/heaters.rssm:51:22', v_small_t, v_target)
+    v_small_p = _rt.call(x_heat_command, CV0, 'heat_command', 'examples/devices/heaters.rssm:54:22', v_small_t, v_target)
     stage['v_small_p'] = v_small_p
 
 
 def f_1_2_1(st: State, stage: dict[str, Any]) -> None:
-    # regulate: update big_p, examples/devices/heaters.rssm:53
+    # regulate: update big_p, examples/devices/heaters.rssm:56
     v_big_t = st.v_big_t
     v_target = st.v_target
-    v_big_p = _rt.call(x_heat_command, CV0, 'heat_command', 'examples/devices/heaters.rssm:54:20', v_big_t, v_target)
+    v_big_p = _rt.call(x_heat_command, CV0, 'heat_command', 'examples/devices/heaters.rssm:57:20', v_big_t, v_target)
     stage['v_big_p'] = v_big_p
 
 
 def f_1_3_1(st: State, stage: dict[str, Any]) -> None:
-    # regulate: update temperatures, examples/devices/heaters.rssm:56
+    # regulate: update temperatures, examples/devices/heaters.rssm:59
     v_big_t = st.v_big_t
     v_small_t = st.v_small_t
     v_temperatures = _rt.float_array((v_small_t, v_big_t))
