@@ -7,14 +7,16 @@ from collections.abc import Iterator
 from contextlib import contextmanager
 from dataclasses import dataclass
 from pathlib import Path
+from typing import TYPE_CHECKING
 
 from rssm_dsl.diagnostics import Diagnostic, DiagnosticBag
-from rssm_dsl.hpn.build import build_hpn
-from rssm_dsl.hpn.ir import HPN
 from rssm_dsl.semantics.analyze import analyze
 from rssm_dsl.semantics.loader import Loader, Program
 from rssm_dsl.semantics.model import System
 from rssm_dsl.source import Span
+
+if TYPE_CHECKING:
+    from rssm_dsl.hpn.ir import HPN
 
 
 @dataclass(frozen=True)
@@ -59,5 +61,7 @@ def _compile(path: Path, overrides: dict[Path, str] | None, build: bool) -> Comp
         system = analyze(program, bag)
     hpn = None
     if build and system is not None and not bag.has_errors:
+        from rssm_dsl.hpn.build import build_hpn  # not needed by `rssmc check`
+
         hpn = build_hpn(system)
     return Compilation(path, program, system, hpn, tuple(bag.sorted()))
