@@ -24,14 +24,17 @@ class EvalError(Exception):
 
 
 class StopSimulation(BaseException):
-    """Raised by a device or an observer of one to end the run cleanly, with the reason and
-    message the run's result and the trace's `end` event carry. It derives from BaseException
-    so that the error handling of operations (E802) never mistakes it for a failure."""
+    """Raised by a device or an observer of one to end the run, with the reason and message
+    the run's result and the trace's `end` event carry: a clean end (the run is ok, `rssmc
+    simulate` exits 0), or with ``failed=True`` a failure the device detected (exit 1). It
+    derives from BaseException so that the error handling of operations (E802) never
+    mistakes it for an error of the operation."""
 
-    def __init__(self, reason: str, message: str) -> None:
+    def __init__(self, reason: str, message: str, failed: bool = False) -> None:
         super().__init__(message)
         self.reason = reason
         self.message = message
+        self.failed = failed
 
 
 class SetupError(Exception):

@@ -84,11 +84,12 @@ class RunResult:
     markings: list[frozenset[int]] = field(default_factory=list)
     forced: int = 0        # replayed firings whose condition did not hold in the data
     summary: Snapshot | None = None
+    stopped_cleanly: bool = False   # a StopSimulation without failed=True ended the run
 
     @property
     def ok(self) -> bool:
-        return self.reason in ("steps", "until", "finished", "interrupted", "replayed",
-                               "stopped", "switches")
+        return self.stopped_cleanly or self.reason in ("steps", "until", "finished",
+                                                       "interrupted", "replayed")
 
 
 class _Stop(Exception):
@@ -284,6 +285,7 @@ class Simulator:
             self.markings.append(self.game.marking())
         steps = 0
         diag: Diagnostic | None = None
+        clean = False
         try:
             if self.opt.mode == "deterministic":
                 steps, reason, message = self._run_deterministic()
@@ -292,7 +294,7 @@ class Simulator:
         except _Stop as stop:
             steps, reason, message, diag = rt.step, stop.reason, stop.message, stop.diagnostic
         except StopSimulation as stop:
-            steps, reason, message = rt.step, stop.reason, stop.message
+            steps, reason, message, clean = rt.step, stop.reason, stop.message, not stop.failed
         except KeyboardInterrupt:
             steps, reason, message = rt.step, "interrupted", "interrupted (Ctrl-C)"
         if diag is not None:
@@ -302,7 +304,7 @@ class Simulator:
         summary = snapshot(rt, self.game, steps)
         result = RunResult(reason, message, steps, rt.time(), time.monotonic() - start,
                            self.diagnostics, self.game.marked_names(), blocked, self.markings,
-                           self.forced_count, summary)
+                           self.forced_count, summary, clean)
         rt.emit({"event": "end", "reason": reason, "message": message,
                  "problems": problems, "summary": summary.to_json()})
         if rt.tracer is not None:

@@ -59,11 +59,8 @@ class Experiment:
     device_steps: int
     params: dict[str, Any]                 # the effector's parameters as run
     diagnostics: tuple[Diagnostic, ...]
+    ok: bool                               # the interpreter's verdict on the end (RunResult.ok)
     model: Any = None                      # the MuJoCo model (for rendering)
-
-    @property
-    def ok(self) -> bool:
-        return self.reason in ("switches", "until", "stopped")
 
     @property
     def real_time_factor(self) -> float:
@@ -154,4 +151,4 @@ def run_experiment(comp: Compilation, options: RunOptions) -> Experiment:
         samples=samples, switches=tuple(recorder.switches), metrics=measure(samples),
         simulated=result.time, wall=wall, cpu=cpu, firings=result.steps,
         device_steps=rt.devices[rig.device].steps, params=params,
-        diagnostics=tuple(result.diagnostics), model=device.arm.model)
+        diagnostics=tuple(result.diagnostics), ok=result.ok, model=device.arm.model)

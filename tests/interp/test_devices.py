@@ -3,6 +3,8 @@
 from __future__ import annotations
 
 import json
+import subprocess
+import sys
 from pathlib import Path
 from typing import Any
 
@@ -103,22 +105,24 @@ def test_lwr4_impedance_op_matches_the_dynamics_library() -> None:
     assert np.allclose(tau, dyn(q, np.zeros(7), sp["position"], sp["velocity"], 2000.0, 100.0))
 
 
-def test_a_device_can_end_the_run_with_its_own_reason(tmp_path: Path) -> None:
+@pytest.mark.parametrize("failed", [False, True])
+def test_a_device_can_end_the_run_with_its_own_reason(failed: bool, tmp_path: Path) -> None:
     from rssm_dsl.interp import RunConfig, SimOptions, Simulator, build_runtime
     from rssm_dsl.pipeline import compile_file
 
-    (tmp_path / "stop_device.py").write_text(  # module names are per process: keep it unique
+    module = f"stop_device_{int(failed)}"  # module names are per process: keep them unique
+    (tmp_path / f"{module}.py").write_text(
         "from rssm_dsl.interp.device import DeviceBase\n"
         "from rssm_dsl.interp.errors import StopSimulation\n"
         "class Stopper(DeviceBase):\n"
         "    def step(self, dt):\n"
         "        super().step(dt)\n"
         "        if self.time >= 0.05:\n"
-        "            raise StopSimulation('enough', f'stopped by the device at {self.time:.2f} s')\n")
+        f"            raise StopSimulation('enough', 'stopped by the device', failed={failed})\n")
     (tmp_path / "s.rssm").write_text("""
 device effector Valve @ 100 Hz {
   input open: bool nonblocking
-  binding "stop_device:Stopper"
+  binding "MODULE:Stopper"
 }
 system s {
   agent a1 {
@@ -142,13 +146,19 @@ system s {
     real effector v: Valve
   }
 }
-""")
+""".replace("MODULE", module))
     comp = compile_file(tmp_path / "s.rssm")
     assert comp.ok, comp.diagnostics
     rt = build_runtime(comp, RunConfig(base_dir=tmp_path))
     result = Simulator(rt, SimOptions(until=10.0)).run()
-    assert result.reason == "enough" and result.ok is False
-    assert "stopped by the device at 0.05 s" in result.message
+    assert result.reason == "enough" and result.message == "stopped by the device"
+    assert result.ok is not failed      # a clean end unless the device says it failed
+    # the CLI: exit 0 for a clean end, 1 for a failure, the reason in the JSON either way
+    r = subprocess.run([sys.executable, "-m", "rssm_dsl", "simulate", str(tmp_path / "s.rssm"),
+                        "--until", "10", "--format", "json"], capture_output=True, text=True,
+                       timeout=120, cwd=tmp_path)
+    assert r.returncode == (1 if failed else 0), r.stderr
+    assert json.loads(r.stdout)["reason"] == "enough"
     assert 0.04 <= result.time <= 0.06
 
 
