@@ -3,10 +3,14 @@ hold (E603); warn when two can hold at once (W604) and when a behaviour is unrea
 
 Switch conditions are abstracted to propositional formulas: the names of the source
 behaviour's terminal/error conditions are atoms (at least one is true when it ends), every
-other comparison or boolean value is an independent atom (`x > 1` and `x <= 1` are one atom,
-negated), except that comparisons of one value with members of its enum (`phase ==
-Phase.grasp`, `phase != Phase.idle`) exclude each other, and cover every case when they name
-all the members. The check enumerates the assignments, so it is exact for that abstraction.
+other comparison or boolean value is an atom. A comparison is one atom whatever its form
+(`x > 1`, `1 < x` and `not (x <= 1)` are the negation of `x <= 1`), and two conditions whose
+comparisons are one atom are one atom too, so `terminal pos when x > 0` and `terminal nonpos
+when x <= 0` never hold together. Atoms are independent except that comparisons of one value
+with members of its enum (`phase == Phase.grasp`, `phase != Phase.idle`) exclude each other,
+and cover every case when they name all the members, and that `<`, `<=` and `==` of the same
+two operands agree as in a total order. The check enumerates the assignments, so it is exact
+for that abstraction.
 """
 
 from __future__ import annotations
@@ -25,6 +29,7 @@ from rssm_dsl.syntax.printer import expr_text
 
 MAX_ATOMS = 14
 _FLIP = {">": "<=", ">=": "<", "!=": "=="}
+_MIRROR = {"<": ">", "<=": ">=", ">": "<", ">=": "<=", "==": "==", "!=": "!="}
 
 
 @dataclass(frozen=True)
@@ -37,29 +42,44 @@ class F:
 
 def _abstract(e: ast.Expr, conds: dict[str, tuple[str, bool]]) -> F:
     """`conds` maps a condition name, or the canonical text of a condition's comparison, to
-    (condition name, negated)."""
+    (the condition whose atom it is, negated)."""
     match e:
         case ast.Literal(value=bool() as v):
             return F("const", (v,))
         case ast.Name(name=n) if n in conds:
-            return F("atom", (f"cond:{conds[n][0]}",))
+            name, negated = conds[n]
+            atom = F("atom", (f"cond:{name}",))
+            return F("not", (atom,)) if negated else atom
         case ast.Unary(op="not", operand=x):
             return F("not", (_abstract(x, conds),))
         case ast.Binary(op="and" | "or", left=a, right=b):
             return F(e.op, (_abstract(a, conds), _abstract(b, conds)))
-        case ast.Binary(op=op, left=a, right=b) if op in ("==", "!=", "<", "<=", ">", ">="):
-            key = _key(op, a, b)
+        case ast.Binary(op=op, left=a, right=b) if op in _MIRROR:
+            key, flipped = _key(op, a, b)
             atom = F("atom", (key,))
             if key in conds:
                 name, negated = conds[key]
                 atom = F("atom", (f"cond:{name}",))
                 atom = F("not", (atom,)) if negated else atom
-            return F("not", (atom,)) if op in _FLIP else atom
+            return F("not", (atom,)) if flipped else atom
     return F("atom", (expr_text(e),))
 
 
-def _key(op: str, a: ast.Expr, b: ast.Expr) -> str:
-    return f"{expr_text(a)} {_FLIP.get(op, op)} {expr_text(b)}"
+def _key(op: str, a: ast.Expr, b: ast.Expr) -> tuple[str, bool]:
+    """The atom of the comparison `a op b`, and whether the comparison is its negation: the
+    operands in one order (a literal on the right, else by their text; `1 < x` is `x > 1`),
+    the operator one of ==, <, <= (`x > 1` is the negation of `x <= 1`)."""
+    left, right = expr_text(a), expr_text(b)
+    literal_left = isinstance(a, ast.Literal) and not isinstance(b, ast.Literal)
+    if literal_left or (not isinstance(b, ast.Literal) and left > right):
+        left, right, op = right, left, _MIRROR[op]
+    key = f"{left} {_FLIP.get(op, op)} {right}"
+    _COMPARISONS[key] = (left, _FLIP.get(op, op), right)
+    return key, op in _FLIP
+
+
+# atom text -> (left operand, operator, right operand), for the atoms _key made
+_COMPARISONS: dict[str, tuple[str, str, str]] = {}
 
 
 def _atoms(f: F, out: set[str]) -> None:
@@ -108,16 +128,37 @@ def _enum_groups(atoms: set[str], enums: Mapping[str, EnumT]
             for (_, enum), g in groups.items()]
 
 
-def _possible(env: dict[str, bool], groups: list[tuple[list[str], bool]]) -> bool:
+def _order_groups(atoms: set[str]) -> list[tuple[str | None, str | None, str | None]]:
+    """The atoms `A < B`, `A <= B`, `A == B` of one pair of operands, as (lt, le, eq): in a
+    total order `A <= B` is `A < B or A == B`, and `A < B` excludes `A == B`."""
+    pairs: dict[tuple[str, str], dict[str, str]] = {}
+    for atom in atoms:
+        if atom in _COMPARISONS:
+            left, op, right = _COMPARISONS[atom]
+            pairs.setdefault((left, right), {})[op] = atom
+    return [(g.get("<"), g.get("<="), g.get("=="))
+            for g in pairs.values() if len(g) > 1]
+
+
+def _possible(env: dict[str, bool], groups: list[tuple[list[str], bool]],
+              orders: list[tuple[str | None, str | None, str | None]]) -> bool:
     for atoms, total in groups:
         true = sum(env[a] for a in atoms)
         if true > 1 or (total and true == 0):
             return False
+    for lt, le, eq in orders:
+        less = env[lt] if lt is not None else None
+        equal = env[eq] if eq is not None else None
+        if less and equal:
+            return False
+        if le is not None and (less or equal) and not env[le]:
+            return False
+        if le is not None and env[le] and less is False and equal is False:
+            return False
     return True
 
 
-def _describe(env: dict[str, bool]) -> str:
-    ended = [k[5:] for k, v in sorted(env.items()) if k.startswith("cond:") and v]
+def _describe(env: dict[str, bool], ended: list[str]) -> str:
     data = [f"{k} is {'true' if v else 'false'}" for k, v in sorted(env.items())
             if not k.startswith("cond:")]
     text = "when " + " and ".join(f"'{c}'" for c in ended) + " ended it"
@@ -125,13 +166,29 @@ def _describe(env: dict[str, bool]) -> str:
 
 
 def _condition_keys(b: Behaviour) -> dict[str, tuple[str, bool]]:
-    """So that a switch repeating a condition's comparison is recognised as that condition."""
-    keys: dict[str, tuple[str, bool]] = {c.name: (c.name, False) for c in b.conditions}
+    """So that a switch repeating a condition's comparison is recognised as that condition,
+    and a condition whose comparison is another's (or its negation) as that one's atom."""
+    keys: dict[str, tuple[str, bool]] = {}
     for c in b.conditions:
-        e = c.expr
-        if isinstance(e, ast.Binary) and e.op in ("==", "!=", "<", "<=", ">", ">="):
-            keys.setdefault(_key(e.op, e.left, e.right), (c.name, e.op in _FLIP))
+        e, negated_expr = c.expr, False
+        while isinstance(e, ast.Unary) and e.op == "not":
+            e, negated_expr = e.operand, not negated_expr
+        if isinstance(e, ast.Binary) and e.op in _MIRROR:
+            key, flipped = _key(e.op, e.left, e.right)
+            flipped = flipped != negated_expr
+            if key in keys:                      # the atom of an earlier condition
+                name, negated = keys[key]
+                keys[c.name] = (name, negated != flipped)
+                continue
+            keys[key] = (c.name, flipped)
+        keys[c.name] = (c.name, False)
     return keys
+
+
+def _holds(name: str, env: dict[str, bool], conds: dict[str, tuple[str, bool]]) -> bool:
+    """Whether the condition ``name`` holds in ``env``."""
+    atom, negated = conds[name]
+    return env[f"cond:{atom}"] != negated
 
 
 def _check_behaviour(ctx: CheckContext, s: Subsystem, b: Behaviour) -> None:
@@ -149,7 +206,7 @@ def _check_behaviour(ctx: CheckContext, s: Subsystem, b: Behaviour) -> None:
     formulas: list[tuple[Switch, F | None]] = [
         (sw, None if sw.condition is None else _abstract(sw.condition, conds)) for sw in outgoing
     ]
-    atoms: set[str] = {f"cond:{c.name}" for c in b.conditions}
+    atoms: set[str] = {f"cond:{conds[c.name][0]}" for c in b.conditions}
     for _, f in formulas:
         if f is not None:
             _atoms(f, atoms)
@@ -158,22 +215,24 @@ def _check_behaviour(ctx: CheckContext, s: Subsystem, b: Behaviour) -> None:
     order = sorted(atoms)
     enums = {n: t for n, t in ctx.system.types if isinstance(t, EnumT)}
     groups = _enum_groups(atoms, enums)
+    orders = _order_groups(atoms)
     missing: list[str] = []
     overlaps: dict[tuple[int, int], str] = {}
     for values in itertools.product((False, True), repeat=len(order)):
         env = dict(zip(order, values, strict=True))
-        if any(env[f"cond:{c.name}"] for c in b.conditions if c.never):
+        if any(_holds(c.name, env, conds) for c in b.conditions if c.never):
             continue
-        if not any(env[f"cond:{c.name}"] for c in live):
+        ended = [c.name for c in b.conditions if _holds(c.name, env, conds)]
+        if not any(_holds(c.name, env, conds) for c in live):
             continue
-        if not _possible(env, groups):
+        if not _possible(env, groups, orders):
             continue
         explicit = [i for i, (_, f) in enumerate(formulas) if f is not None and _eval(f, env)]
         holding = explicit or [i for i, (_, f) in enumerate(formulas) if f is None]
         if not holding:
-            missing.append(_describe(env))
+            missing.append(_describe(env, ended))
         for i, j in itertools.combinations(explicit, 2):
-            overlaps.setdefault((i, j), _describe(env))
+            overlaps.setdefault((i, j), _describe(env, ended))
     if missing:
         shown = "; ".join(missing[:3]) + (f"; and {len(missing) - 3} more" if len(missing) > 3 else "")
         ctx.bag.error("E603", f"after behaviour '{b.name}' of {s.id} ends, no switch condition "
