@@ -57,6 +57,9 @@ CODES: tuple[Code, ...] = (
     Code("E213", "empty-range", _E, "a range type whose low bound is above its high bound"),
     Code("E214", "value-out-of-range", _E, "a constant outside the range of the type it is stored in"),
     Code("E215", "call-before-the-run", _E, "an external operation called in an initial value or a constant"),
+    Code("E216", "binding-not-found", _E, "the module of a binding lacks the function or class it names"),
+    Code("E217", "binding-arity", _E, "an extern's Python function cannot take the extern's arguments"),
+    Code("W218", "binding-module-not-found", _W, "the Python module of a binding is not found here"),
     # structure (paper III-A)
     Code("E301", "control-count", _E, "an agent needs exactly one control subsystem"),
     Code("E302", "link-not-allowed", _E, "a link between subsystems the methodology forbids"),

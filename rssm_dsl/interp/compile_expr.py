@@ -15,7 +15,6 @@ error, an external operation that raises or returns a value of the wrong type) r
 
 from __future__ import annotations
 
-import inspect
 import math
 from collections.abc import Callable, Mapping
 from typing import Any
@@ -145,16 +144,3 @@ class ExprCompiler:
         lines += [f"stage[{n!r}] = {var(n)}" for n in written]
         fn: Case = self._compile(gen, "env, stage", lines)
         return fn, written
-
-
-def check_signature(fn: Callable[..., Any], arity: int) -> str | None:
-    """Why ``fn`` cannot be called with ``arity`` positional arguments, or None."""
-    try:
-        sig = inspect.signature(fn)
-    except (TypeError, ValueError):
-        return None
-    try:
-        sig.bind(*range(arity))
-    except TypeError as e:
-        return str(e)
-    return None

@@ -32,14 +32,14 @@ from fnmatch import fnmatchcase
 from pathlib import Path
 from typing import Any
 
-from rssm_dsl.bindings import BindingError, resolve
+from rssm_dsl.bindings import BindingError, binding_dirs, callable_arity_problem, resolve
 from rssm_dsl.diagnostics import Diagnostic, Related
 from rssm_dsl.hpn.flat import FlatNet, FlatPlace, FlatTransition
 from rssm_dsl.hpn.flatten import flatten
 from rssm_dsl.hpn.ir import HPN, CondKind, Operation, OpKind, PageKind
 from rssm_dsl.interp.channels import ChannelState
 from rssm_dsl.interp.clock import SimClock, Ticker, WallClock
-from rssm_dsl.interp.compile_expr import ExprCompiler, check_signature
+from rssm_dsl.interp.compile_expr import ExprCompiler
 from rssm_dsl.interp.device import Device as DeviceImpl
 from rssm_dsl.interp.device import DeviceConfigError, DeviceSpec
 from rssm_dsl.interp.errors import EvalError, SetupError
@@ -148,14 +148,14 @@ class _Builder:
         fn: Callable[..., Any] | None = None
         related = (Related(use, f"{ext.name}() is called here"),)
         try:
-            obj = resolve(ext.binding, self.config.base_dir)
+            obj = resolve(ext.binding, binding_dirs(ext.span.file, self.config.base_dir))
             if not callable(obj):
                 self.diags.append(Diagnostic(
                     "E801", f"\"{ext.binding}\" of extern {ext.name} is not callable", ext.span,
                     "bind the extern to a Python function", related))
             else:
                 fn = obj
-                why = check_signature(fn, len(ext.params))
+                why = callable_arity_problem(fn, len(ext.params))
                 if why is not None:
                     self.diags.append(Diagnostic(
                         "E804", f"\"{ext.binding}\" cannot take the {len(ext.params)} "
@@ -194,7 +194,8 @@ class _Builder:
                 f"--device {d.id}=rssm_stdlib.devices.constant:ConstantDevice"))
             return None
         try:
-            cls = resolve(binding, self.config.base_dir)
+            declared = d.binding_span.file if d.binding_span is not None else None
+            cls = resolve(binding, binding_dirs(declared, self.config.base_dir))
         except BindingError as e:
             self.diags.append(Diagnostic(
                 "E801", f"device {d.id} ({d.device_type}): {e.message}", d.span,

@@ -77,7 +77,7 @@ class Experiment:
 
 
 def _device_class() -> type[Any]:
-    obj = resolve(DEVICE_BINDING, None)
+    obj = resolve(DEVICE_BINDING, [])
     assert isinstance(obj, type)
     return obj
 

@@ -56,7 +56,8 @@ def analyze(program: Program, bag: DiagnosticBag) -> System | None:
             if shell.device:
                 devices.append(Device(a.name, shell.kind, shell.name, shell.device_type,
                                       shell.span, shell.frequency, tuple(shell.params),
-                                      tuple(inputs), tuple(outputs), shell.binding))
+                                      tuple(inputs), tuple(outputs), shell.binding,
+                                      shell.binding_span))
                 continue
             assert shell.decl is not None
             bp = BehaviourPass(bag, g, shell)
@@ -76,7 +77,8 @@ def analyze(program: Program, bag: DiagnosticBag) -> System | None:
     property_reads: dict[str, set[str]] = {}
     properties = check_properties(bag, system, sysdecl.properties, g.symbols(), sub_decls,
                                   property_reads)
-    ctx = CheckContext(bag, system, sub_decls, written, unchecked, property_reads)
+    ctx = CheckContext(bag, system, sub_decls, written, unchecked, property_reads,
+                       root_file=root.span.file)
     for check in CHECKS:
         check(ctx)
     return replace(system, properties=properties)

@@ -211,6 +211,7 @@ class Device:
     inputs: tuple[Buffer, ...]
     outputs: tuple[Buffer, ...]
     binding: str | None
+    binding_span: Span | None = None  # where the device type declares its binding
 
     @property
     def letter(self) -> str:

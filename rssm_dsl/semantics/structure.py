@@ -31,6 +31,7 @@ class Shell:
     decl: ast.SubsystemDecl | None = None
     device_type: str = ""
     binding: str | None = None
+    binding_span: Span | None = None
     # params, memory and buffers whose type could not be resolved (an error was reported):
     # later passes know the names but say nothing more about them
     unresolved: list[ast.ParamDecl | ast.MemoryDecl | ast.BufferDecl] = field(
@@ -226,7 +227,8 @@ class StructurePass:
                            related=(Related(decl.name_span, "device type declared here"),))
         shell = Shell(agent, decl.kind.value, d.name, True, d.span,
                       self._frequency(d.frequency or decl.frequency), device_type=decl.name,
-                      binding=decl.binding.binding if decl.binding else None)
+                      binding=decl.binding.binding if decl.binding else None,
+                      binding_span=decl.binding.span if decl.binding else None)
         self._fill(shell, self._instance_params(d, decl), (), decl.buffers)
         for b in decl.buffers:
             if b.peer is not None:

@@ -51,11 +51,11 @@ def test_a_device_module_needing_an_extra_gets_the_install_hint(
     monkeypatch.setitem(sys.modules, "mujoco", None)        # import mujoco now fails
     (tmp_path / "needs_mujoco.py").write_text("import mujoco\n")
     with pytest.raises(BindingError) as e:
-        import_module("needs_mujoco", tmp_path)
+        import_module("needs_mujoco", [tmp_path])
     assert "'mujoco'" in e.value.message and (e.value.hint or "").startswith("pip install 'rssmc[run]'")
     (tmp_path / "needs_extra.py").write_text("import matplotlib_is_not_here.sub\n")
     with pytest.raises(BindingError) as e:
-        import_module("needs_extra", tmp_path)
+        import_module("needs_extra", [tmp_path])
     assert "matplotlib_is_not_here" in e.value.message
     # a module no extra provides: the generic hint
     assert e.value.hint is not None and "rssmc[" not in e.value.hint

@@ -79,7 +79,9 @@ def test_language_example_compiles_clean(tmp_path: Path, line: int, body: str) -
     spec = tmp_path / f"language_md_line{line}.rssm"
     spec.write_text(body, encoding="utf-8")
     comp = compile_file(spec)
-    assert not comp.diagnostics, (
+    # the blocks bind devices to a robot's own modules (`my_robot.gripper:Jaw`), which are not
+    # here: W218 says so, and nothing else may be reported
+    assert not [d for d in comp.diagnostics if d.code != "W218"], (
         f"docs/language.md block at line {line}:\n"
         + render_text(comp.diagnostics, comp.program.line))
     assert comp.hpn is not None

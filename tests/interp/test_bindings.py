@@ -19,7 +19,7 @@ OPS = (SPECS / "faulty_ops.py").read_text(encoding="utf-8")
 
 
 def test_stdlib_is_importable_as_rssm_stdlib() -> None:
-    fn = resolve("rssm_stdlib.lwr4plus.ops:circle_setpoint", None)
+    fn = resolve("rssm_stdlib.lwr4plus.ops:circle_setpoint", [])
     assert callable(fn)
     sp = fn(0.05, 2.0, 0.0, 1.0)
     assert np.allclose(sp["position"], [0.58, 0.0, 0.4])      # phase 0: the start point
@@ -30,12 +30,12 @@ def test_stdlib_is_importable_as_rssm_stdlib() -> None:
 
 def test_user_module_next_to_the_spec(tmp_path: Path) -> None:
     (tmp_path / "my_ops_mod.py").write_text("def twice(x):\n    return 2 * x\n")
-    twice = resolve("my_ops_mod:twice", tmp_path)
+    twice = resolve("my_ops_mod:twice", [tmp_path])
     assert callable(twice) and twice(4) == 8
     with pytest.raises(BindingError, match="no module 'absent_mod_xyz'"):
-        resolve("absent_mod_xyz:f", tmp_path)
+        resolve("absent_mod_xyz:f", [tmp_path])
     with pytest.raises(BindingError, match="has no attribute 'nope'"):
-        resolve("my_ops_mod:nope", tmp_path)
+        resolve("my_ops_mod:nope", [tmp_path])
 
 
 def _spec(extern: str, body: str, conditions: str = "terminal never when false",
@@ -71,9 +71,11 @@ def test_missing_binding_is_e801_at_the_extern(tmp_path: Path) -> None:
 
 
 def test_wrong_arity_is_e804(tmp_path: Path) -> None:
-    (tmp_path / "faulty_ops.py").write_text(OPS)
+    """`rssmc check` reads the arity from the source (E217, tests/front/test_binding_check.py);
+    a function made at import time is only seen when the run imports it."""
+    (tmp_path / "faulty_ops.py").write_text(OPS + "\n\nmade = (lambda: lambda x: x)()\n")
     comp = compile_text(tmp_path, _spec(
-        'extern f(x: float, y: float) -> float = "faulty_ops:risky"', "          x := f(x, x)"))
+        'extern f(x: float, y: float) -> float = "faulty_ops:made"', "          x := f(x, x)"))
     with pytest.raises(SetupError) as e:
         runtime(comp)
     assert [d.code for d in e.value.diagnostics] == ["E804"]

@@ -20,3 +20,5 @@ class CheckContext:
     unchecked: dict[str, set[str]] = field(default_factory=dict)
     # subsystem id -> its variables and parameters that properties read (they count as used)
     property_reads: dict[str, set[str]] = field(default_factory=dict)
+    # the root specification as spans name it (its folder is where bindings are looked up)
+    root_file: str | None = None
