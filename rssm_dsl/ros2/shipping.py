@@ -1,9 +1,11 @@
 """Which Python modules the workspace ships: the modules of the bindings the nodes use
 (``extern ... = "module:function"``, device ``binding "module:Class"``), found where the
-interpreter finds them (rssm_dsl.bindings): rssmc's standard library (``rssm_stdlib.*``,
-shipped as the package ``rssm_stdlib`` with the one sub-package or module named) or the
-folder of the specification (the top-level module or package named). A module found in
-neither is expected to be installed in the Python environment ROS 2 runs in (warning W861).
+interpreter finds them (rssm_dsl.bindings.find_module): rssmc's standard library
+(``rssm_stdlib.*``, shipped as the package ``rssm_stdlib`` with the one sub-package or module
+named) or the folder of the file that declares the binding, or of the root specification
+(the top-level module or package named). A module found in neither, or in a namespace
+package there (a folder without ``__init__.py``), is expected to be installed in the Python
+environment ROS 2 runs in (warning W861).
 
 The semantics core, the package ``rssm_core`` (values and their operations, communication
 modes, trace format), is always shipped, unchanged: the nodes run the very code the
@@ -18,7 +20,7 @@ from dataclasses import dataclass, field
 from pathlib import Path
 
 import rssm_core
-from rssm_dsl.bindings import STDLIB_PACKAGE
+from rssm_dsl.bindings import STDLIB_PACKAGE, BindingError, find_module
 from rssm_dsl.resources import stdlib_dir
 
 SKIP_DIRS = {"__pycache__"}
@@ -50,21 +52,27 @@ class Shipment:
                 self.data.setdefault(package, set()).add(path.name)
 
 
-def ship(modules: dict[str, str], spec_dir: Path) -> Shipment:
-    """``modules`` maps each module to ship to a binding that uses it (for messages)."""
+def ship(modules: dict[str, tuple[str, list[Path]]]) -> Shipment:
+    """``modules`` maps each module to ship to a binding that uses it (for messages) and the
+    folders it is looked up in (rssm_dsl.bindings.binding_dirs)."""
     out = Shipment()
     out.add_tree(Path(rssm_core.__file__).resolve().parent, "rssm_core", "rssm_core")
-    for module, binding in sorted(modules.items()):
+    for module, (binding, dirs) in sorted(modules.items()):
         parts = module.split(".")
         if parts[0] == STDLIB_PACKAGE:
             _ship_stdlib(out, parts, binding)
             continue
         top = parts[0]
-        if (spec_dir / top / "__init__.py").is_file():
-            out.add_tree(spec_dir / top, top, top)
-        elif (spec_dir / f"{top}.py").is_file():
+        try:
+            found = find_module(module, dirs).folder
+            folder = found.resolve() if found is not None else None
+        except BindingError:
+            folder = None
+        if folder is not None and (folder / top / "__init__.py").is_file():
+            out.add_tree(folder / top, top, top)
+        elif folder is not None and (folder / f"{top}.py").is_file():
             out.modules.add(top)
-            out.copies[f"{top}.py"] = spec_dir / f"{top}.py"
+            out.copies[f"{top}.py"] = folder / f"{top}.py"
         else:
             out.missing[module] = binding
     return out

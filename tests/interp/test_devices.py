@@ -31,7 +31,7 @@ def spec(tmp_path: Path, options: dict[str, str] | None = None,
 
 
 def make(binding: str, s: DeviceSpec) -> Device:
-    cls = resolve(binding, None)
+    cls = resolve(binding, [])
     assert callable(cls)
     dev = cls(s)
     assert isinstance(dev, Device)
@@ -94,8 +94,8 @@ def test_csv_replay_reports_bad_files(tmp_path: Path) -> None:
 
 
 def test_lwr4_impedance_op_matches_the_dynamics_library() -> None:
-    impedance = resolve("rssm_stdlib.lwr4plus.ops:impedance", None)
-    dyn = resolve("rssm_stdlib.lwr4plus.dynamics:impedance_torque", None)
+    impedance = resolve("rssm_stdlib.lwr4plus.ops:impedance", [])
+    dyn = resolve("rssm_stdlib.lwr4plus.dynamics:impedance_torque", [])
     assert callable(impedance) and callable(dyn)
     q = np.array([0.0, -0.6, 0.0, 1.4, 0.0, 0.6 + 1.4 - np.pi, 0.0])
     state = {"q": q, "dq": np.zeros(7), "position": np.zeros(3), "velocity": np.zeros(3)}

@@ -248,3 +248,19 @@ def test_module_not_next_to_the_spec_is_reported(tmp_path: Path) -> None:
     assert [w.code for w in ws.warnings] == ["W861"]
     assert "'math'" in ws.warnings[0].message
     assert "`math` (binding \"math:sqrt\")" in ws.files["README.md"]
+
+
+def test_a_library_s_module_is_shipped_from_the_library_s_folder(tmp_path: Path) -> None:
+    """An extern bound in an imported library is looked up next to the library, as the
+    interpreter looks it up (rssm_dsl.bindings.binding_dirs), and shipped from there."""
+    (tmp_path / "lib").mkdir()
+    (tmp_path / "lib" / "tools.rssm").write_text(
+        'extern twice(v: float) -> float = "libops:twice"\n')
+    (tmp_path / "lib" / "libops.py").write_text("def twice(v):\n    return 2.0 * v\n")
+    text = SYSTEM.format(field="pos", system="sys", agent="a1", effector="arm")
+    text = 'import "lib/tools.rssm"\n' + text.replace("x + 1.0", "twice(x) + 1.0")
+    ws = gen_text(tmp_path, text)
+    assert not isinstance(ws, list)
+    assert not ws.warnings
+    shipped = {rel: src for rel, src in ws.copies.items() if rel.endswith("/libops.py")}
+    assert [p.resolve() for p in shipped.values()] == [(tmp_path / "lib" / "libops.py").resolve()]

@@ -71,7 +71,7 @@ def generated_module(system: System, hpn: HPN, sub: Subsystem, agent: str, j: st
     ns: dict[str, Any] = {"_rt": rt_values, "math": math, "Any": Any, "Mapping": Mapping,
                           "_NoSwitch": _NoSwitch}
     for x in view.externs:
-        ns[x.var] = resolve(f"{x.module}:{x.attribute}", base)
+        ns[x.var] = resolve(f"{x.module}:{x.attribute}", [base])
     exec(compile("\n".join(lines), f"<node {sub.id}>", "exec"), ns)
     return ns, view
 
@@ -88,7 +88,7 @@ def interpreter(system: System, sub: Subsystem, values: SpecValues,
         symbols[b.name] = Symbol(b.direction.value, b.type, b.span)
     externs = {e.name: e for e in system.externs}
     return ExprCompiler(symbols, externs, values.consts,
-                        lambda ext, span: resolve(ext.binding, base))  # type: ignore[arg-type]
+                        lambda ext, span: resolve(ext.binding, [base]))  # type: ignore[arg-type]
 
 
 def outcome(run: Callable[[], Any]) -> tuple[str, Any]:

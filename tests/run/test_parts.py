@@ -22,7 +22,7 @@ from tests.run.conftest import LWR4
 
 
 def _device(frequency: float = 1000.0, **options: str) -> Any:
-    cls = resolve("rssm_stdlib.lwr4plus.device:MujocoLwr4Device", None)
+    cls = resolve("rssm_stdlib.lwr4plus.device:MujocoLwr4Device", [])
     assert isinstance(cls, type)
     return cls(DeviceSpec("a1.E.lwr", "lwr", "LWR4Plus", "effector", frequency, {}, {}, {},
                           options=options, base_dir=Path(".")))
@@ -30,10 +30,10 @@ def _device(frequency: float = 1000.0, **options: str) -> Any:
 
 def test_start_pose_circle_start_and_lwr4_start_are_one_point() -> None:
     device = _device()
-    ops = np.asarray(resolve("rssm_stdlib.lwr4plus.ops:CIRCLE_START", None))
-    dynamics = resolve("rssm_stdlib.lwr4plus.dynamics:default_dynamics", None)
+    ops = np.asarray(resolve("rssm_stdlib.lwr4plus.ops:CIRCLE_START", []))
+    dynamics = resolve("rssm_stdlib.lwr4plus.dynamics:default_dynamics", [])
     assert callable(dynamics)
-    q0 = resolve("rssm_stdlib.lwr4plus.device:START_POSE", None)
+    q0 = resolve("rssm_stdlib.lwr4plus.device:START_POSE", [])
     pin_position = dynamics().ee_position(q0)
     assert np.abs(device.state["position"] - ops).max() < 1e-9          # MuJoCo
     assert np.abs(pin_position - ops).max() < 1e-9                        # Pinocchio
@@ -69,7 +69,7 @@ def test_device_measures_read_only_state_and_calls_observers_before_each_step() 
     assert np.allclose(state["velocity"], s.ee_vel, atol=1e-15)
     assert np.linalg.norm(state["velocity"]) > 0.0
     # each observer saw the state the step started from
-    start = resolve("rssm_stdlib.lwr4plus.ops:CIRCLE_START", None)
+    start = resolve("rssm_stdlib.lwr4plus.ops:CIRCLE_START", [])
     assert np.abs(seen[0][1] - start).max() < 1e-9
     assert not np.array_equal(seen[2][1], seen[0][1])
 
@@ -140,12 +140,12 @@ def test_fit_circle_recovers_a_circle_and_rejects_a_line() -> None:
 
 
 def test_cartesian_impedance_forms_and_the_scalar_gain_fast_path() -> None:
-    ops_impedance = resolve("rssm_stdlib.lwr4plus.ops:impedance", None)
-    cartesian = resolve("rssm_stdlib.lwr4plus.ops:cartesian_impedance", None)
-    torque = resolve("rssm_stdlib.lwr4plus.dynamics:impedance_torque", None)
+    ops_impedance = resolve("rssm_stdlib.lwr4plus.ops:impedance", [])
+    cartesian = resolve("rssm_stdlib.lwr4plus.ops:cartesian_impedance", [])
+    torque = resolve("rssm_stdlib.lwr4plus.dynamics:impedance_torque", [])
     assert callable(ops_impedance) and callable(cartesian) and callable(torque)
     rng = np.random.default_rng(8)
-    q = np.asarray(resolve("rssm_stdlib.lwr4plus.device:START_POSE", None)) + \
+    q = np.asarray(resolve("rssm_stdlib.lwr4plus.device:START_POSE", [])) + \
         rng.normal(0.0, 0.1, 7)
     dq = rng.normal(0.0, 0.5, 7)
     state = {"q": q, "dq": dq, "position": np.zeros(3), "velocity": np.zeros(3)}
@@ -160,7 +160,7 @@ def test_cartesian_impedance_forms_and_the_scalar_gain_fast_path() -> None:
         general = torque(q, dq, sp["position"], sp["velocity"], 3000.0 * eye, 100.0 * eye, flag)
         assert np.allclose(tau, general, rtol=0.0, atol=1e-10)
     # the two forms differ by D J_v^T v_des
-    dyn = resolve("rssm_stdlib.lwr4plus.dynamics:default_dynamics", None)
+    dyn = resolve("rssm_stdlib.lwr4plus.dynamics:default_dynamics", [])
     assert callable(dyn)
     jv = dyn().jacobian(q)[:3]
     assert np.allclose(velocity_error - paper, jv.T @ (100.0 * sp["velocity"]), atol=1e-10)
