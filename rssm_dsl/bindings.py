@@ -85,7 +85,10 @@ def _import_top_from(folder: Path, top: str) -> bool:
     namespace package too); whether it is imported now."""
     if top in sys.modules:
         return True
-    spec = importlib.machinery.PathFinder.find_spec(top, [str(folder)])
+    try:
+        spec = importlib.machinery.PathFinder.find_spec(top, [str(folder)])
+    except (OSError, ValueError):        # a name too long for the file system: not there
+        return False
     if spec is None:
         return False
     module = importlib.util.module_from_spec(spec)
@@ -201,14 +204,17 @@ def _lookup(part: str, dirs: Sequence[Path]) -> tuple[Path | None, list[Path]] |
     portions: list[Path] = []
     for d in dirs:
         package = d / part
-        if (package / "__init__.py").is_file():
-            return package / "__init__.py", [package]
-        if (d / f"{part}.py").is_file():
-            return d / f"{part}.py", []
-        if any(d.glob(f"{part}.*.so")) or any(d.glob(f"{part}.*.pyd")):
-            return None, []
-        if package.is_dir():
-            portions.append(package)
+        try:
+            if (package / "__init__.py").is_file():
+                return package / "__init__.py", [package]
+            if (d / f"{part}.py").is_file():
+                return d / f"{part}.py", []
+            if any(d.glob(f"{part}.*.so")) or any(d.glob(f"{part}.*.pyd")):
+                return None, []
+            if package.is_dir():
+                portions.append(package)
+        except (OSError, ValueError):    # a name too long for the file system: not there
+            continue
     return (None, portions) if portions else None
 
 
@@ -231,7 +237,7 @@ def find_module(name: str, dirs: Sequence[Path]) -> ModuleSource:
         if hit is None:
             try:
                 spec = importlib.util.find_spec(top)
-            except (ImportError, ValueError):
+            except (ImportError, ValueError, OSError):
                 spec = None
             if spec is None:
                 raise _not_found(name, dirs)

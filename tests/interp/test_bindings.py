@@ -73,9 +73,10 @@ def test_missing_binding_is_e801_at_the_extern(tmp_path: Path) -> None:
 def test_wrong_arity_is_e804(tmp_path: Path) -> None:
     """`rssmc check` reads the arity from the source (E217, tests/front/test_binding_check.py);
     a function made at import time is only seen when the run imports it."""
-    (tmp_path / "faulty_ops.py").write_text(OPS + "\n\nmade = (lambda: lambda x: x)()\n")
+    # modules are imported once per process: a name of its own
+    (tmp_path / "made_ops.py").write_text("made = (lambda: lambda x: x)()\n")
     comp = compile_text(tmp_path, _spec(
-        'extern f(x: float, y: float) -> float = "faulty_ops:made"', "          x := f(x, x)"))
+        'extern f(x: float, y: float) -> float = "made_ops:made"', "          x := f(x, x)"))
     with pytest.raises(SetupError) as e:
         runtime(comp)
     assert [d.code for d in e.value.diagnostics] == ["E804"]
