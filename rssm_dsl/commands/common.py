@@ -37,13 +37,32 @@ QuietOpt = Annotated[bool, typer.Option("--quiet", "-q", help="Print nothing on 
 
 
 def guarded(fn: Callable[[], int]) -> None:
-    """Run a command body; turn an unexpected exception into a clear internal-error report."""
+    """Run a command body; turn an unexpected exception into a clear internal-error report.
+    A file that cannot be read or written (no permission, a full disk, an output path too
+    long for the file system) is most often the environment's problem: it is told as such,
+    exit 2, with a pointer to report it if the paths are right."""
+    from rssm_dsl.diagnostics.diagnostic import bound_text
+    from rssm_dsl.filenames import UnusableFileName
+
     try:
         code = fn()
     except (typer.Exit, KeyboardInterrupt):
         raise
+    except (OSError, UnusableFileName) as e:
+        if isinstance(e, OSError):
+            where = f": '{e.filename}'" if e.filename else ""
+            what = f"{e.strerror or type(e).__name__}{where}"
+        else:
+            what = str(e)
+        typer.echo(f"rssmc: error: {bound_text(what)}", err=True)
+        typer.echo("  help: check the paths given to the command (--output/-o) and their "
+                   "permissions; if they are right, this is a bug in rssmc: please report it "
+                   "(set RSSMC_DEBUG=1 for the traceback)", err=True)
+        if os.environ.get("RSSMC_DEBUG"):
+            traceback.print_exc()
+        raise typer.Exit(EXIT_USAGE) from None
     except Exception as e:
-        typer.echo(f"rssmc: internal error [E900]: {type(e).__name__}: {e}", err=True)
+        typer.echo(f"rssmc: internal error [E900]: {type(e).__name__}: {bound_text(str(e))}", err=True)
         typer.echo("  help: this is a bug in rssmc; please report it with the input file"
                    " (set RSSMC_DEBUG=1 for the traceback)", err=True)
         if os.environ.get("RSSMC_DEBUG"):
@@ -55,13 +74,16 @@ def guarded(fn: Callable[[], int]) -> None:
 def report(comp: Compilation, fmt: Format, quiet: bool = False) -> None:
     """Print the diagnostics of a compilation (text on stderr with a summary line, or JSON
     on stdout)."""
-    from rssm_dsl.diagnostics.render import render_json, render_text, summary
+    from rssm_dsl.diagnostics.render import json_chunks, render_text, summary
+    from rssm_dsl.source import escape_controls
 
     diags = list(comp.diagnostics)
     if fmt is Format.json:
-        typer.echo(render_json(diags))
+        for chunk in json_chunks(diags):
+            typer.echo(chunk, nl=False)
+        typer.echo()
         return
     if diags:
         typer.echo(render_text(diags, comp.program.line), err=True)
     if diags or not quiet:
-        typer.echo(f"{comp.path}: {summary(diags)}", err=True)
+        typer.echo(f"{escape_controls(str(comp.path))}: {summary(diags)}", err=True)

@@ -38,6 +38,7 @@ def render_cmd(
 
         from rssm_dsl.diagnostics import DiagnosticBag
         from rssm_dsl.emit.write import write_outputs
+        from rssm_dsl.filenames import file_name
         from rssm_dsl.hpn.flatten import flatten
         from rssm_dsl.pipeline import compile_file
         from rssm_dsl.render.html import render_explorer, render_index
@@ -80,7 +81,7 @@ def render_cmd(
                     bag.error("E851", f"Graphviz `dot` failed on page {e.page}: {e.message}",
                               at, "the HTML explorer was written instead")
                     want_html = True
-        explorer = f"{hpn.system}.html" if want_html else None
+        explorer = file_name(hpn.system, ".html") if want_html else None
         spec = str(file)
         if explorer is not None:
             files[explorer] = render_explorer(hpn, net, comp.program, spec, figures, playback)

@@ -31,6 +31,7 @@ from __future__ import annotations
 from dataclasses import dataclass, field
 
 from rssm_dsl.emit.xmltext import Indents, attr, leaf
+from rssm_dsl.filenames import file_name
 from rssm_dsl.hpn.ir import HPN, Arc, HpnIndex, Page, Transition
 
 UNIT = "UNIT"
@@ -294,4 +295,4 @@ def _page_order(hpn: HPN, ix: HpnIndex) -> list[str]:
 
 
 def emit_cpn(hpn: HPN) -> dict[str, str]:
-    return {f"{hpn.system}.cpn": hpn_cpn(hpn)}
+    return {file_name(hpn.system, ".cpn"): hpn_cpn(hpn)}

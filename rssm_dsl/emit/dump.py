@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 from rssm_dsl.emit.order import pages_in_order
+from rssm_dsl.filenames import file_name
 from rssm_dsl.hpn.ir import HPN
 from rssm_dsl.source import Span
 
@@ -50,4 +51,4 @@ def dump_text(hpn: HPN) -> str:
 
 
 def emit_dump(hpn: HPN) -> dict[str, str]:
-    return {f"{hpn.system}.hpn.txt": dump_text(hpn)}
+    return {file_name(hpn.system, ".hpn.txt"): dump_text(hpn)}

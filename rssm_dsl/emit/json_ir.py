@@ -8,6 +8,7 @@ from typing import Any
 
 from rssm_dsl import __version__
 from rssm_dsl.emit.order import pages_in_order
+from rssm_dsl.filenames import file_name
 from rssm_dsl.hpn.ir import HPN, Condition, Operation
 from rssm_dsl.source import Span
 
@@ -71,4 +72,4 @@ def to_json(hpn: HPN) -> dict[str, Any]:
 
 
 def emit_json(hpn: HPN) -> dict[str, str]:
-    return {f"{hpn.system}.hpn.json": json.dumps(to_json(hpn), indent=1) + "\n"}
+    return {file_name(hpn.system, ".hpn.json"): json.dumps(to_json(hpn), indent=1) + "\n"}

@@ -24,6 +24,7 @@ the sub-page is written, and are filled into slots kept for them.
 from __future__ import annotations
 
 from rssm_dsl.emit.xmltext import Indents, attr, leaf
+from rssm_dsl.filenames import file_name
 from rssm_dsl.hpn.flat import FlatNet
 from rssm_dsl.hpn.flatten import flatten
 from rssm_dsl.hpn.ir import HPN, Arc, Page, Place, Transition
@@ -211,8 +212,8 @@ def _q(value: str) -> str:
 
 
 def emit_pnml(hpn: HPN) -> dict[str, str]:
-    return {f"{hpn.system}.pnml": flat_pnml(flatten(hpn))}
+    return {file_name(hpn.system, ".pnml"): flat_pnml(flatten(hpn))}
 
 
 def emit_paged_pnml(hpn: HPN) -> dict[str, str]:
-    return {f"{hpn.system}.paged.pnml": paged_pnml(hpn)}
+    return {file_name(hpn.system, ".paged.pnml"): paged_pnml(hpn)}

@@ -9,12 +9,18 @@ import tempfile
 from collections.abc import Iterable, Mapping
 from pathlib import Path
 
+from rssm_dsl.filenames import check_output_path
+
 
 def write_outputs(target: Path, files: Mapping[str, str | bytes],
                   replace_dirs: Iterable[str] = ()) -> list[Path]:
     """Write ``files`` (name relative to ``target`` -> text, or bytes for binary files).
     The subfolders ``replace_dirs`` of ``target`` are emptied first (once everything is
-    staged), so files no longer generated there disappear; anything else is left alone."""
+    staged), so files no longer generated there disappear; anything else is left alone.
+    Every name is checked first (rssm_dsl.filenames.check_output_path): a name that cannot
+    be a file name raises before anything is written."""
+    for rel in files:
+        check_output_path(rel)
     target = target.resolve()
     target.parent.mkdir(parents=True, exist_ok=True)
     staging = Path(tempfile.mkdtemp(prefix=".rssmc-", dir=target.parent))

@@ -31,6 +31,7 @@ from rssm_dsl.hpn.flat import FlatNet
 from rssm_dsl.hpn.ir import HPN
 from rssm_dsl.render.playback import Playback
 from rssm_dsl.semantics.loader import Program
+from rssm_dsl.source import split_lines
 
 FORMAT = "rssmc-explorer"
 FORMAT_VERSION = 1
@@ -104,7 +105,7 @@ def _sources(hpn: HPN, program: Program) -> dict[str, list[str]]:
     files |= {p.span.file for p in hpn.places.values()}
     files |= {t.span.file for t in hpn.transitions.values()}
     files |= {f.span.file for f in hpn.fusions.values()}
-    return {f: program.sources[f].text.splitlines() for f in sorted(files)
+    return {f: split_lines(program.sources[f].text) for f in sorted(files)
             if f in program.sources}
 
 

@@ -5,7 +5,9 @@ the index brackets and commas become underscores, anything else that is not a le
 `_`, `.` or `-` becomes `-`. So `H` -> `fig-H`, `P[1]` -> `fig-P_1`, `P[1,c]` -> `fig-P_1_c`,
 `P^B[1,lwr,move]` -> `fig-PB_1_lwr_move`, `P^f[1,c,cw,2]` -> `fig-Pf_1_c_cw_2`,
 `P^E[1,lwr]` -> `fig-PE_1_lwr`. Two pages whose stems would be equal ignoring case (a
-case-insensitive file system would merge them) get `-2`, `-3`, ... in page order.
+case-insensitive file system would merge them) get `-2`, `-3`, ... in page order. A stem
+longer than a file name can be (long names of behaviours) is cut and ended by a hash of the
+page id (rssm_dsl.filenames.fitted_file_name).
 """
 
 from __future__ import annotations
@@ -13,6 +15,7 @@ from __future__ import annotations
 import re
 
 from rssm_dsl.emit.order import pages_in_order
+from rssm_dsl.filenames import fitted_file_name
 from rssm_dsl.hpn.ir import HPN
 
 _OTHER = re.compile(r"[^A-Za-z0-9_.\-]")
@@ -29,7 +32,7 @@ def figure_files(hpn: HPN) -> dict[str, str]:
     out: dict[str, str] = {}
     taken: set[str] = set()
     for page in pages_in_order(hpn):
-        stem = figure_stem(page.id)
+        stem = fitted_file_name(figure_stem(page.id))
         name, n = stem, 1
         while name.lower() in taken:
             n += 1

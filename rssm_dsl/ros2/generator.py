@@ -28,6 +28,7 @@ from jinja2 import Environment, PackageLoader, StrictUndefined
 
 from rssm_dsl.diagnostics import Diagnostic
 from rssm_dsl.emit.write import write_outputs
+from rssm_dsl.filenames import file_name
 from rssm_dsl.interp.initial import InitialValues
 from rssm_dsl.pipeline import Compilation
 from rssm_dsl.pycode import comment, tuple_source
@@ -134,7 +135,7 @@ def _render(ws: WorkspaceView) -> dict[str, str]:
         for dev in agent.devices:
             put(f"{pkg.name}/{pkg.name}/{dev.module}.py", "device.py.j2",
                 f"node of device {dev.id}", dev=dev)
-        put(f"{pkg.name}/launch/{agent.name}.launch.py", "launch.py.j2",
+        put(f"{pkg.name}/launch/{file_name(agent.name, '.launch.py')}", "launch.py.j2",
             f"launch file of agent {agent.name}", agent=agent)
         put(f"{pkg.name}/config/params.yaml", "params.yaml.j2",
             f"parameters of agent {agent.name}", agent=agent)

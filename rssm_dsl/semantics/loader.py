@@ -1,14 +1,24 @@
-"""Read the root file and everything it imports (user files first, then the stdlib)."""
+"""Read the root file and everything it imports (user files first, then the stdlib).
+
+Besides reading, the loader reports what is wrong with a file as text rather than as RSSM:
+the file itself (E001-E004), a line separator in a comment (W012), and the names that cannot
+become the file names they give the outputs (E011, rssm_dsl/filenames.py). A lookup that
+fails in any way (a path too long for the system, a NUL in it) is a module not found (E009).
+"""
 
 from __future__ import annotations
 
+import errno
 import os
+import re
+import stat
 from dataclasses import dataclass, field
 from pathlib import Path
 
 from rssm_dsl.diagnostics import DiagnosticBag
+from rssm_dsl.filenames import MAX_NAME_LENGTH, is_file, name_problem
 from rssm_dsl.resources import stdlib_dir
-from rssm_dsl.source import SourceFile, Span
+from rssm_dsl.source import SourceFile, Span, describe_char
 from rssm_dsl.syntax import ast
 from rssm_dsl.syntax.parser import parse
 
@@ -49,15 +59,17 @@ def read_source(
     shown = display_path(path)
     if overrides and path.resolve() in overrides:
         return SourceFile(shown, overrides[path.resolve()])
-    if not path.exists():
-        bag.error("E001", f"cannot read '{path}': no such file", at,
+    try:
+        info = path.stat()
+    except (OSError, ValueError) as e:   # ValueError: a NUL in the path
+        bag.error("E001", f"cannot read '{path}': {_lookup_failure(e)}", at,
                   "check the path; imports are looked up next to the importing file, then in the stdlib")
         return None
-    if not path.is_file():
+    if not stat.S_ISREG(info.st_mode):
         bag.error("E002", f"'{path}' is not a regular file", at, "give the path of a .rssm file")
         return None
     try:
-        size = path.stat().st_size
+        size = info.st_size
         if size > MAX_FILE_BYTES:
             bag.error("E004", f"'{path}' is {size / 1e6:.1f} MB; the limit is "
                       f"{MAX_FILE_BYTES / 1e6:.1f} MB", at, "split the specification into imported files")
@@ -76,6 +88,14 @@ def read_source(
                   "save the file as UTF-8")
         return None
     return SourceFile(shown, text.removeprefix("\ufeff"))
+
+
+def _lookup_failure(e: OSError | ValueError) -> str:
+    if isinstance(e, ValueError) or e.errno in (errno.ENOENT, errno.ENOTDIR):
+        return "no such file"
+    if e.errno == errno.ENAMETOOLONG:
+        return "the path is too long for the file system"
+    return e.strerror or str(e)
 
 
 def _candidates(imp: ast.Import, importer: Path) -> list[Path]:
@@ -115,14 +135,16 @@ class Loader:
         result = parse(source)
         for d in result.diagnostics:
             self.bag.add(d)
+        check_line_separators(source, self.bag)
         module = result.module
         self._done[key] = module
         if module is None:
             return None
+        check_file_names(module, self.bag)
         self._stack.append(key)
         imported: list[str] = []
         for imp in module.imports:
-            target = next((c for c in _candidates(imp, path) if c.is_file()), None)
+            target = next((c for c in _candidates(imp, path) if is_file(c)), None)
             if target is None:
                 self.bag.error(
                     "E009", f"cannot find module '{imp.path}'", imp.span,
@@ -143,3 +165,93 @@ class Loader:
         self.program.imports[source.path] = imported
         self.program.modules.append(module)
         return module
+
+
+# ---------------------------------------------------------------- W012: U+2028 in comments
+
+LINE_SEPARATORS = "\u2028\u2029\x85"   # not line terminators in RSSM (rssm_dsl/source.py)
+_LEXEME_START = re.compile(r'"|//|/\*')
+_STRING = re.compile(r'"(?:[^"\\\n]|\\.)*"')      # the grammar's STRING
+
+
+def line_separators_in_comments(text: str) -> tuple[int, int] | None:
+    """(offset of the first, count) of the line separators (U+2028, U+2029, U+0085) inside
+    ``//`` comments of ``text``, or None when there are none. Strings and block comments are
+    skipped as the lexer skips them; linear in the length of the text."""
+    if not any(c in text for c in LINE_SEPARATORS):
+        return None
+    first, count = -1, 0
+    i, n = 0, len(text)
+    while (m := _LEXEME_START.search(text, i)) is not None:
+        at = m.start()
+        if m.group() == '"':
+            string = _STRING.match(text, at)
+            if string is not None:
+                i = string.end()
+            else:                                  # an unclosed string skips its line (E006)
+                end = text.find("\n", at)
+                i = n if end < 0 else end
+        elif m.group() == "/*":
+            end = text.find("*/", at + 2)
+            if end < 0:
+                break                              # an unclosed `/*` runs to the end (E007)
+            i = end + 2
+        else:
+            end = text.find("\n", at)
+            end = n if end < 0 else end
+            for c in LINE_SEPARATORS:
+                k = text.find(c, at, end)
+                if k >= 0:
+                    first = k if first < 0 else min(first, k)
+                    count += text.count(c, at, end)
+            i = end
+    return (first, count) if count else None
+
+
+def check_line_separators(source: SourceFile, bag: DiagnosticBag) -> None:
+    found = line_separators_in_comments(source.text)
+    if found is None:
+        return
+    first, count = found
+    others = f"; the comments of this file hold {count} such characters" if count > 1 else ""
+    bag.warn("W012", f"{describe_char(source.text[first])} does not end a line in RSSM; the "
+             f"comment runs on to the next line break{others}", source.span(first, first + 1),
+             "use a line break (\\n) to end a line: U+2028, U+2029 and U+0085 are ordinary "
+             "characters in RSSM")
+
+
+# ---------------------------------------------------------------- E011: names of files
+
+_NAMES_WHAT = {
+    "system": "it names the output files (<system>.hpn.json, <system>.html, the ROS 2 "
+              "packages <system>_<agent>)",
+    "agent": "it names the ROS 2 package <system>_<agent> and its launch file",
+    "subsystem": "it names the module of its ROS 2 node (node_<letter>_<subsystem>.py)",
+    "device": "it names the module of its ROS 2 node (device_<letter>_<device>.py)",
+    "record": "it names the ROS 2 message file <Record>.msg",
+}
+
+
+def _file_names(module: ast.Module) -> list[tuple[str, str, Span]]:
+    """(kind, name, span of the name) of every name of ``module`` that becomes (part of) a
+    file or directory name in some output."""
+    out: list[tuple[str, str, Span]] = []
+    for decl in module.decls:
+        if isinstance(decl, ast.RecordDecl):
+            out.append(("record", decl.name, decl.name_span))
+        elif isinstance(decl, ast.SystemDecl):
+            out.append(("system", decl.name, decl.name_span))
+            for agent in decl.agents:
+                out.append(("agent", agent.name, agent.name_span))
+                out += [("subsystem", s.name, s.name_span) for s in agent.subsystems]
+                out += [("device", d.name, d.name_span) for d in agent.devices]
+    return out
+
+
+def check_file_names(module: ast.Module, bag: DiagnosticBag) -> None:
+    for kind, name, span in _file_names(module):
+        problem = name_problem(name)
+        if problem is not None:
+            bag.error("E011", f"the {kind} name '{name}' cannot become a file name: {problem}",
+                      span, f"shorten the {kind} name to at most {MAX_NAME_LENGTH} characters; "
+                      f"{_NAMES_WHAT[kind]}")

@@ -328,11 +328,12 @@ class _Formatter:
 def format_text(text: str, path: str = "<input>") -> FormatResult:
     """Format RSSM source text. Returns FormatResult(None, diagnostics) when the text has
     syntax errors (nothing is formatted then)."""
-    result = parse(SourceFile(path, text))
+    source = SourceFile(path, text)
+    result = parse(source)
     if result.diagnostics or result.module is None:
         return FormatResult(None, result.diagnostics)
     try:
-        tokens = _lex(text)
+        tokens = _lex(source.text)      # bare CRs are line ends, as the parser read them
     except LarkError:  # the parser accepted it, so the lexer does too; be safe anyway
         return FormatResult(None, result.diagnostics)
     formatted = _Formatter(tokens).run()

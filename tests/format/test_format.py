@@ -231,3 +231,13 @@ def test_fmt_command_check_and_write(tmp_path: Path) -> None:
     assert failed.returncode == 1 and "E007" in failed.stderr
     assert broken.read_text(encoding="utf-8") == "system s {"
     assert rssmc(str(tmp_path / "missing.rssm")).returncode == 2
+
+
+def test_bare_cr_line_ends_format_like_lf() -> None:
+    """A bare CR ends a line (old Mac files), for the formatter as for the parser."""
+    lf = "system s {\n  agent a {\n    control c @ 10 Hz {\n      // a comment\n" \
+         "      behaviour b { terminal never when false }\n      initial b\n    }\n  }\n}\n"
+    want = format_text(lf).text
+    assert want is not None and "// a comment\n" in want
+    assert format_text(lf.replace("\n", "\r")).text == want
+    assert format_text(lf.replace("\n", "\r\n")).text == want
