@@ -16,7 +16,7 @@ from dataclasses import dataclass
 from lsprotocol import types as lsp
 
 from rssm_dsl.lsp.index import block_close, subsystem_key, system_id
-from rssm_dsl.lsp.positions import LineIndex
+from rssm_dsl.lsp.positions import LineIndex, line_end, line_start
 from rssm_dsl.semantics.behaviours import (
     _NotData,
     combination_text,
@@ -42,8 +42,8 @@ def _subsystems(module: ast.Module) -> list[Where]:
 
 
 def _indent_of(text: str, offset: int) -> str:
-    start = text.rfind("\n", 0, offset) + 1
-    line = text[start:]
+    start = line_start(text, offset)
+    line = text[start:line_end(text, start)]
     return line[: len(line) - len(line.lstrip(" \t"))]
 
 
@@ -69,16 +69,15 @@ class Fixer:
 
     def _after_line(self, offset: int) -> int:
         """The offset of the end of the line holding `offset`."""
-        end = self.text.find("\n", offset)
-        return len(self.text) if end < 0 else end
+        return line_end(self.text, offset)
 
     def _before_closer(self, name_end: int) -> tuple[int, str]:
         """Where to insert lines before the `}` that closes the block opened after a name
         (ending at name_end). Returns (offset, prefix): prefix starts a new line if needed."""
         close = block_close(self.text, name_end) - 1
-        line_start = self.text.rfind("\n", 0, close) + 1
-        if self.text[line_start:close].strip() == "":
-            return line_start, ""
+        start = line_start(self.text, close)
+        if self.text[start:close].strip() == "":
+            return start, ""
         return close, "\n"
 
     # ------------------------------------------------------------------ fixes

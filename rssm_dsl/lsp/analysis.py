@@ -20,16 +20,21 @@ from contextlib import contextmanager
 from dataclasses import dataclass, field, replace
 from pathlib import Path
 
-from rssm_dsl.diagnostics import Diagnostic, DiagnosticBag
+from rssm_dsl.diagnostics import Diagnostic, DiagnosticBag, Severity
 from rssm_dsl.lsp.incremental import Reparsed, ShiftMap, State, map_diagnostic, map_module, reparse
 from rssm_dsl.lsp.index import Occurrence, SymbolIndex, build_index
 from rssm_dsl.lsp.paths import path_of_display
 from rssm_dsl.lsp.positions import LineIndex
 from rssm_dsl.pipeline import compile_file
 from rssm_dsl.semantics.analyze import analyze
-from rssm_dsl.semantics.loader import Program
+from rssm_dsl.semantics.loader import (
+    LINE_SEPARATORS,
+    Program,
+    check_file_names,
+    check_line_separators,
+)
 from rssm_dsl.semantics.model import System
-from rssm_dsl.source import Span
+from rssm_dsl.source import SourceFile, Span
 from rssm_dsl.syntax import ast
 
 log = logging.getLogger("rssmc.lsp")
@@ -104,6 +109,10 @@ class LazyModule:
     shifts: ShiftMap | None = None
     value: ast.Module | None = None
     lock: threading.Lock = field(default_factory=threading.Lock, repr=False)
+
+    @property
+    def ready(self) -> bool:
+        return self.value is not None or self.stale is None
 
     def get(self) -> ast.Module | None:
         with self.lock:
@@ -232,8 +241,10 @@ def analyze_text(uri: str, path: Path, display: str, text: str, version: int | N
         try:
             got = reparse(state, text, display,
                           lambda p: _imports_unchanged(p, display, overrides))
-            if got is not None:
-                return _incremental(uri, path, display, text, version, lines, got, kept_system)
+            step = None if got is None else _incremental(uri, path, display, text, version,
+                                                         lines, got, kept_system)
+            if step is not None:
+                return step
         except Exception:
             log.exception("incremental analysis failed; analysing the whole text")
     comp = compile_file(path, overrides, build=False)
@@ -299,8 +310,29 @@ def _agent_blocks(agent: ast.AgentDecl) -> list[Span]:
     return out
 
 
+def _loader_checks(module: ast.Module, display: str, text: str,
+                   shifts: ShiftMap) -> list[Diagnostic]:
+    """What the loader checks in a file it reads (an incremental analysis reads none): the
+    names that become file names (E011, on the module's stale spans) and the line separators
+    in comments (W012, on the text)."""
+    stale = DiagnosticBag()
+    check_file_names(module, stale)
+    out = [map_diagnostic(d, shifts) for d in stale.sorted()]
+    if any(c in text for c in LINE_SEPARATORS):
+        real = DiagnosticBag()
+        check_line_separators(SourceFile(display, text), real)
+        out += real.sorted()
+    return [d for d in out if d.span.file == display]
+
+
 def _incremental(uri: str, path: Path, display: str, text: str, version: int | None,
-                 lines: LineIndex, got: Reparsed, kept_system: System | None) -> Analysis:
+                 lines: LineIndex, got: Reparsed, kept_system: System | None
+                 ) -> Analysis | None:
+    """The analysis of a reparsed text, or None when the whole text must be analysed (an
+    error of the loader's checks stops the compiler before the semantic passes)."""
+    loader = _loader_checks(got.state.module, display, text, got.state.shifts)
+    if any(d.severity is Severity.ERROR for d in loader):
+        return None
     bag = DiagnosticBag()
     try:
         with _no_gc():
@@ -326,7 +358,7 @@ def _incremental(uri: str, path: Path, display: str, text: str, version: int | N
         semantic = [d for d in semantic if "'_'" not in d.message and not any(
             a <= d.span.offset <= b or a <= d.span.end_offset <= b for a, b in regions)]
         system = None
-    mine = _finish(mine + semantic, got.state.module)
+    mine = _finish(mine + semantic + loader, got.state.module)
     return Analysis(
         uri, version, path, display, text, lines, LazyModule(got.state.module, shifts),
         got.program, tuple(mine), LazyIndex(got.program, shifts=shifts),

@@ -11,6 +11,7 @@ import re
 from lsprotocol import types as lsp
 
 from rssm_dsl.lsp.index import SymbolIndex, block_close
+from rssm_dsl.lsp.positions import line_start
 from rssm_dsl.semantics.typecheck import BUILTIN_CONSTS, BUILTIN_FUNCTIONS
 from rssm_dsl.semantics.types import SCALARS
 from rssm_dsl.syntax import ast
@@ -75,8 +76,7 @@ def _peers(agent: ast.AgentDecl, system: ast.SystemDecl,
 
 def complete(module: ast.Module | None, index: SymbolIndex, text: str,
              offset: int) -> list[lsp.CompletionItem]:
-    line_start = text.rfind("\n", 0, offset) + 1
-    before = re.sub(r"[A-Za-z_][A-Za-z0-9_]*$", "", text[line_start:offset]).rstrip()
+    before = re.sub(r"[A-Za-z_][A-Za-z0-9_]*$", "", text[line_start(text, offset):offset]).rstrip()
     m = _TRIGGER.search(before)
     trigger = m.group(1) if m else ""
     members = _enum_members(index, before) if trigger == "." else None

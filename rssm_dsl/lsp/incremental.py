@@ -22,6 +22,7 @@ from __future__ import annotations
 import bisect
 import dataclasses
 import itertools
+import re
 from collections.abc import Callable
 from dataclasses import dataclass
 from enum import Enum
@@ -29,6 +30,7 @@ from typing import Any
 
 from rssm_dsl.diagnostics import Diagnostic, Related
 from rssm_dsl.lsp.index import block_close, block_end
+from rssm_dsl.lsp.positions import count_lines
 from rssm_dsl.semantics.loader import Program
 from rssm_dsl.source import SourceFile, Span
 from rssm_dsl.syntax import ast
@@ -111,8 +113,17 @@ class Reparsed:
     program: Program
 
 
+_NOT_BREAK = re.compile(r"[^\r\n]+")
+
+
 def _mask(text: str) -> str:
-    return "\n".join(" " * len(line) for line in text.split("\n"))
+    """`text` blanked but for its line terminators (so that offsets and lines are kept)."""
+    return _NOT_BREAK.sub(lambda m: " " * len(m.group()), text)
+
+
+def _line_count(text: str) -> int:
+    """The lines of `text` as the compiler counts them (spans must agree with it)."""
+    return count_lines(text)
 
 
 def _keyword_before(text: str, word: str, at: int) -> int | None:
@@ -139,9 +150,9 @@ def reparse(state: State, text: str, display: str,
     if state.steps >= MAX_STEPS or not unchanged_imports(state.program):
         return None
     a, b = _common_ends(old, text)
-    old_end, new_end = len(old) - b, len(text) - b
+    old_end = len(old) - b
     d_chars = len(text) - len(old)
-    d_lines = text.count("\n", a, new_end) - old.count("\n", a, old_end)
+    d_lines = _line_count(text) - _line_count(old)   # the prefix and suffix are common
     systems = [d for d in state.module.decls if isinstance(d, ast.SystemDecl)]
     if len(systems) != 1:
         return None

@@ -26,6 +26,7 @@ from collections.abc import Iterator
 from dataclasses import dataclass, field
 from pathlib import Path
 
+from rssm_dsl.lsp.positions import line_end, line_start
 from rssm_dsl.semantics.loader import Program, _candidates, display_path
 from rssm_dsl.semantics.typecheck import BUILTIN_CONSTS, BUILTIN_FUNCTIONS
 from rssm_dsl.source import SourceFile, Span
@@ -117,8 +118,7 @@ def block_end(text: str, end: int) -> int:
     while i < n:
         ch = text[i]
         if text.startswith("//", i):
-            j = text.find("\n", i)
-            i = n if j < 0 else j + 1
+            i = line_end(text, i)
             continue
         if text.startswith("/*", i):
             j = text.find("*/", i + 2)
@@ -126,7 +126,7 @@ def block_end(text: str, end: int) -> int:
             continue
         if ch == '"':
             j = i + 1
-            while j < n and text[j] not in '"\n':
+            while j < n and text[j] not in '"\n\r':
                 j += 2 if text[j] == "\\" else 1
             i = j + 1
             continue
@@ -430,8 +430,7 @@ class IndexBuilder:
             return src.span(at, at + len(written)) if at >= 0 else None
         pattern = re.compile(r"\bimport\s+" + re.escape(written).replace(r"\.", r"\s*\.\s*"))
         for m in pattern.finditer(src.text):
-            line_start = src.text.rfind("\n", 0, m.start()) + 1
-            if "//" not in src.text[line_start:m.start()]:
+            if "//" not in src.text[line_start(src.text, m.start()):m.start()]:
                 start = m.start() + len("import")
                 start += len(src.text[start:m.end()]) - len(src.text[start:m.end()].lstrip())
                 return src.span(start, m.end())

@@ -1,9 +1,22 @@
 """The language server: pygls 2 on stdio, the compiler's front end and checks underneath.
 
-Documents are analysed in a worker thread (the server keeps answering meanwhile), after a
-short debounce on every change; the newest analysis of each document is kept, with the last
-good semantic model for hover. Requests that depend on positions wait (briefly) for the
-analysis of the text they were made on.
+Hostile input does not stop it:
+
+- Framing (framing.py): a message announced larger than MAX_MESSAGE_BYTES (64 MiB), a wrong
+  Content-Length, a malformed header or a body that is not JSON is answered with a JSON-RPC
+  error (id null) and the reader resynchronises on the next `Content-Length:` header.
+- Lifecycle (LSP): a request before `initialize` gets ServerNotInitialized (-32002), one after
+  `shutdown` InvalidRequest (-32600); notifications then are dropped (but `exit`); `exit`
+  ends the process with 0 after `shutdown`, 1 without (also at end of input).
+- Long analyses: each document is analysed in a thread of its own (jobs.py), after a short
+  debounce on every change; a newer version cancels the running analysis of the older one.
+  Requests never queue behind an analysis: those that need a document's analysis wait for
+  the current text's at most WAIT_SECONDS, then answer from the last finished analysis (or
+  with nothing); other blocking work (symbol index, formatting, outline) runs in job threads
+  too, and what a 1 MB one-line file can make huge is capped (MAX_DIAGNOSTICS, the outline's
+  MAX_SYMBOLS).
+
+The newest analysis of each document is kept, with the last good semantic model for hover.
 """
 
 from __future__ import annotations
@@ -14,20 +27,31 @@ import logging
 import os
 import re
 import sys
-from concurrent.futures import ThreadPoolExecutor
+import threading
 from pathlib import Path
-from typing import Any
+from typing import Any, BinaryIO
+from urllib.parse import unquote
 
+from cattrs.errors import ClassValidationError
 from lsprotocol import types as lsp
-from pygls.exceptions import JsonRpcException
+from lsprotocol.types import ResponseErrorMessage
+from pygls.exceptions import JsonRpcException, JsonRpcInternalError, JsonRpcInvalidParams
+from pygls.io_ import StdoutWriter
 from pygls.lsp.server import LanguageServer
 from pygls.protocol import LanguageServerProtocol
+from pygls.protocol.json_rpc import (
+    JsonRPCNotification,
+    JsonRPCRequestMessage,
+    JsonRPCResponseMessage,
+)
 
 from rssm_dsl import __version__
+from rssm_dsl.lsp import framing
 from rssm_dsl.lsp.actions import Fixer
 from rssm_dsl.lsp.analysis import Analysis, analyze_text
 from rssm_dsl.lsp.completion import complete
-from rssm_dsl.lsp.convert import to_lsp
+from rssm_dsl.lsp.convert import SOURCE, to_lsp
+from rssm_dsl.lsp.documents import use_lsp_lines
 from rssm_dsl.lsp.hover import hover_text, update_hover
 from rssm_dsl.lsp.index import (
     BUILTIN_NAMES,
@@ -38,6 +62,7 @@ from rssm_dsl.lsp.index import (
     subsystem_key,
     system_id,
 )
+from rssm_dsl.lsp.jobs import Job, run_job
 from rssm_dsl.lsp.paths import is_stdlib, path_of_display, path_of_uri, uri_of_path
 from rssm_dsl.lsp.positions import UTF16, LineIndex
 from rssm_dsl.lsp.symbols import document_symbols
@@ -49,31 +74,112 @@ from rssm_dsl.syntax.format import FormatterBug, format_text, keywords
 log = logging.getLogger("rssmc.lsp")
 
 DEBOUNCE_SECONDS = float(os.environ.get("RSSMC_LSP_DEBOUNCE_MS", "10")) / 1000
-WAIT_SECONDS = 10.0
+# How long a request waits for the analysis of the text it was made on.
+WAIT_SECONDS = 1.0
 MAX_WORKSPACE_FILES = 500
+MAX_DIAGNOSTICS = 1000     # published per document (a generated file can have 80,000)
+# The interval at which a thread that wants the GIL makes the running one hand it over
+# (Python's default: 5 ms). An analysis of a small document reads its imports: each read
+# releases the GIL and waits a whole interval to get it back from a long analysis running
+# beside it (an edit then took 130 ms instead of 7). Switches only happen between threads
+# that compete, so a lone analysis is not slowed.
+SWITCH_INTERVAL = 0.001
 _NAME_RE = re.compile(r"^[A-Za-z_][A-Za-z0-9_]*$")
 FIXABLE = frozenset({"E501", "E603", "E304"})
+SERVER_NOT_INITIALIZED = -32002
+INVALID_REQUEST = -32600
 
 
 class _Answered(Exception):
     """A malformed request that was already answered with an error."""
 
 
+def _valid_id(x: object) -> bool:
+    """A JSON-RPC request id: a string or an integer (JSON's true is no number)."""
+    return isinstance(x, int | str) and not isinstance(x, bool)
+
+
 class RssmProtocol(LanguageServerProtocol):
     """Answers a request whose params do not fit its method with an error carrying the
-    request's id (pygls would only log it)."""
+    request's id (pygls would only log it), and enforces the LSP lifecycle."""
+
+    def __init__(self, *args: Any, **kwargs: Any) -> None:
+        super().__init__(*args, **kwargs)
+        self.initialize_seen = False
+        self.shutdown_seen = False
 
     def structure_message(self, data: dict[str, Any]) -> Any:
         try:
-            return super().structure_message(data)
+            return self._structure(data)
         except JsonRpcException as e:
-            if isinstance(data, dict) and "method" in data and isinstance(
-                    data.get("id"), int | str):
+            if isinstance(data, dict) and "method" in data and _valid_id(data.get("id")):
                 self._send_data({"jsonrpc": "2.0", "id": data["id"], "error": {
                     "code": e.code, "message": f"{e.message}: the params of "
                     f"{data['method']} do not fit the protocol"}})
                 raise _Answered from e
             raise
+
+    def _structure(self, data: dict[str, Any]) -> Any:
+        """pygls's structure_message, without logging a traceback for the client's mistake
+        (it is answered with an error)."""
+        if "jsonrpc" not in data:
+            return data
+        try:
+            return self._converter.structure(data, self._message_type(data))
+        except ClassValidationError as e:
+            log.info("the message does not fit the protocol: %s", e)
+            raise JsonRpcInvalidParams() from e
+        except Exception as e:
+            log.info("the message does not fit the protocol: %s: %s", type(e).__name__, e)
+            raise JsonRpcInternalError() from e
+
+    def _message_type(self, data: dict[str, Any]) -> Any:
+        if "id" not in data:
+            return self.get_message_type(data.get("method", "")) or JsonRPCNotification
+        if "error" in data:
+            return ResponseErrorMessage
+        if "method" in data:
+            return self.get_message_type(data["method"]) or JsonRPCRequestMessage
+        return self._result_types.pop(data["id"], None) or JsonRPCResponseMessage
+
+    def reject(self, msg_id: Any, code: int, message: str) -> None:
+        self._send_data({"jsonrpc": "2.0", "id": msg_id,
+                         "error": {"code": code, "message": message}})
+
+    def handle_message(self, message: Any) -> None:
+        method = getattr(message, "method", None)
+        msg_id = getattr(message, "id", None)
+        request = method is not None and _valid_id(msg_id)
+        refusal = self._refusal(message, method)
+        if refusal is None:
+            if method == lsp.INITIALIZE:
+                self.initialize_seen = True
+            elif method == lsp.SHUTDOWN:
+                self.shutdown_seen = True
+            super().handle_message(message)
+        elif request:
+            self.reject(msg_id, *refusal)
+        else:
+            log.info("dropped %s: %s", method, refusal[1])
+
+    def _refusal(self, message: Any, method: str | None) -> tuple[int, str] | None:
+        """Why the message must not be handled now (None: handle it)."""
+        if method is None:   # a response, or no message at all (pygls answers that)
+            return None
+        if getattr(message, "jsonrpc", None) != self.VERSION:
+            return INVALID_REQUEST, 'Invalid request: "jsonrpc" must be "2.0"'
+        if method == lsp.EXIT:
+            return None
+        if not self.initialize_seen and method != lsp.INITIALIZE:
+            return SERVER_NOT_INITIALIZED, f"{method}: the server is not initialized yet"
+        if self.shutdown_seen:
+            return INVALID_REQUEST, f"{method}: the server is shutting down"
+        if self.initialize_seen and method == lsp.INITIALIZE:
+            return INVALID_REQUEST, "initialize: the server is already initialized"
+        if method == lsp.TEXT_DOCUMENT_DID_CHANGE and unquote(
+                message.params.text_document.uri) not in self.workspace.text_documents:
+            return INVALID_REQUEST, "the document is not open"
+        return None
 
 
 class RssmServer(LanguageServer):
@@ -83,11 +189,14 @@ class RssmServer(LanguageServer):
                          protocol_cls=RssmProtocol)
         self.analyses: dict[str, Analysis] = {}
         self.timers: dict[str, asyncio.TimerHandle] = {}
-        self.running: set[str] = set()
-        self.dirty: set[str] = set()
+        self.jobs: dict[str, Job[Analysis]] = {}     # the running analysis of each document
         self.waiters: dict[str, list[asyncio.Future[None]]] = {}
-        self.executor = ThreadPoolExecutor(max_workers=1, thread_name_prefix="rssm-analysis")
         self.workspace_cache: dict[Path, tuple[float, SymbolIndex]] = {}
+
+    @property
+    def rssm_protocol(self) -> RssmProtocol:
+        assert isinstance(self.protocol, RssmProtocol)
+        return self.protocol
 
     # ------------------------------------------------------------------ helpers
     @property
@@ -99,11 +208,15 @@ class RssmServer(LanguageServer):
         return str(getattr(enc, "value", enc) or UTF16)
 
     def doc_text(self, uri: str) -> tuple[str, int | None] | None:
+        """The text and version of an open document (None for any other: a URI is never
+        read from disk here, be it /dev/zero or the server's own stdin)."""
         try:
-            doc = self.workspace.get_text_document(uri)
-            return doc.source, doc.version
-        except Exception:
+            doc = self.workspace.text_documents.get(unquote(uri))
+        except RuntimeError:
             return None
+        if doc is None:
+            return None
+        return doc.source, doc.version
 
     def open_uris(self) -> list[str]:
         try:
@@ -151,10 +264,9 @@ class RssmServer(LanguageServer):
         self.timers[uri] = loop.call_later(delay, self._start, uri)
 
     def _start(self, uri: str) -> None:
+        """Analyse the document's current text; an analysis of an older text is stopped."""
         self.timers.pop(uri, None)
-        if uri in self.running:
-            self.dirty.add(uri)
-            return
+        self._stop(uri)
         got = self.doc_text(uri)
         if got is None:
             return
@@ -163,27 +275,34 @@ class RssmServer(LanguageServer):
         display = display_path(path)
         overrides = self.overrides()
         previous = self.analyses.get(uri)
-        self.running.add(uri)
-        loop = asyncio.get_running_loop()
-        future = loop.run_in_executor(self.executor, analyze_text, uri, path, display, text,
-                                      version, overrides, previous)
-        future.add_done_callback(lambda f: self._finished(uri, f))
+        job = Job(lambda: analyze_text(uri, path, display, text, version, overrides, previous),
+                  asyncio.get_running_loop(), "rssm-analysis")
+        self.jobs[uri] = job
+        job.future.add_done_callback(lambda f: self._finished(uri, job))
 
-    def _finished(self, uri: str, future: asyncio.Future[Analysis]) -> None:
-        self.running.discard(uri)
-        try:
-            analysis = future.result()
-        except Exception as e:
-            log.exception("analysis of %s failed", uri)
-            self.text_document_publish_diagnostics(lsp.PublishDiagnosticsParams(
-                uri=uri, diagnostics=[lsp.Diagnostic(
-                    range=lsp.Range(start=lsp.Position(line=0, character=0),
-                                    end=lsp.Position(line=0, character=0)),
-                    message=f"internal error of the language server: {type(e).__name__}: {e}"
-                    "\nhelp: this is a bug in rssmc; please report it with the input file",
-                    severity=lsp.DiagnosticSeverity.Error, code="E900", source="rssmc")]))
-            self._wake(uri)
+    def _stop(self, uri: str) -> None:
+        job = self.jobs.pop(uri, None)
+        if job is not None:
+            job.cancel()
+
+    def stop_all(self) -> None:
+        for timer in self.timers.values():
+            timer.cancel()
+        self.timers.clear()
+        for uri in list(self.jobs):
+            self._stop(uri)
+
+    def _finished(self, uri: str, job: Job[Analysis]) -> None:
+        if self.jobs.get(uri) is job:
+            del self.jobs[uri]
+        future = job.future
+        if future.cancelled():   # superseded (a newer analysis runs) or closed
             return
+        error = future.exception()
+        if error is not None:
+            self._failed(uri, error)
+            return
+        analysis = future.result()
         got = self.doc_text(uri)
         if got is None:  # closed meanwhile
             self._wake(uri)
@@ -193,11 +312,22 @@ class RssmServer(LanguageServer):
         if got[1] == analysis.version:
             self.publish(analysis)
             self._wake(uri)
-        if uri in self.dirty or got[1] != analysis.version:
-            self.dirty.discard(uri)
-            self.schedule(uri, 0)
+        if got[1] != analysis.version:
+            if uri not in self.timers and uri not in self.jobs:
+                self.schedule(uri, 0)
         elif old is None or old.text != analysis.text:
             self._dependents(analysis)
+
+    def _failed(self, uri: str, e: BaseException) -> None:
+        log.error("analysis of %s failed", uri, exc_info=e)
+        self.text_document_publish_diagnostics(lsp.PublishDiagnosticsParams(
+            uri=uri, diagnostics=[lsp.Diagnostic(
+                range=lsp.Range(start=lsp.Position(line=0, character=0),
+                                end=lsp.Position(line=0, character=0)),
+                message=f"internal error of the language server: {type(e).__name__}: {e}"
+                "\nhelp: this is a bug in rssmc; please report it with the input file",
+                severity=lsp.DiagnosticSeverity.Error, code="E900", source=SOURCE)]))
+        self._wake(uri)
 
     def _dependents(self, changed: Analysis) -> None:
         """Re-analyse the open documents that import the one that changed."""
@@ -212,36 +342,50 @@ class RssmServer(LanguageServer):
                 w.set_result(None)
 
     async def current(self, uri: str) -> Analysis | None:
-        """The analysis of the document's current text (waits for it, briefly)."""
+        """The analysis of the document's current text; after WAIT_SECONDS without it, the
+        last finished analysis (maybe of an older text, maybe None)."""
         got = self.doc_text(uri)
         a = self.analyses.get(uri)
         if got is None:
             return a
-        if a is not None and a.version == got[1] and uri not in self.timers \
-                and uri not in self.running:
+        busy = uri in self.timers or uri in self.jobs
+        if a is not None and a.version == got[1] and not busy:
             return a
-        if uri not in self.timers and uri not in self.running:
+        if not busy:
             self.schedule(uri, 0)
         waiter: asyncio.Future[None] = asyncio.get_running_loop().create_future()
-        self.waiters.setdefault(uri, []).append(waiter)
-        with contextlib.suppress(TimeoutError):
+        waiting = self.waiters.setdefault(uri, [])
+        waiting.append(waiter)
+        try:
             await asyncio.wait_for(waiter, WAIT_SECONDS)
+        except TimeoutError:
+            with contextlib.suppress(ValueError):
+                waiting.remove(waiter)
         return self.analyses.get(uri)
 
     async def indexed(self, uri: str) -> Analysis | None:
-        """The current analysis, with its symbol index built (in the worker thread)."""
+        """The current analysis, with its AST and symbol index built (in a job's thread)."""
         a = await self.current(uri)
-        if a is not None:
-            await self.ensure_index(a)
+        if a is not None and not (a.lazy_module.ready and a.lazy_index.ready):
+            await run_job(lambda: (a.lazy_module.get(), a.lazy_index.get()), "rssm-index")
         return a
 
     async def ensure_index(self, a: Analysis) -> None:
         if not a.lazy_index.ready:
-            await asyncio.get_running_loop().run_in_executor(self.executor, a.lazy_index.get)
+            await run_job(a.lazy_index.get, "rssm-index")
+
+    async def ensure_module(self, a: Analysis) -> None:
+        """The AST with real spans (mapped after an incremental analysis: long for a huge
+        text, so not on the event loop)."""
+        if not a.lazy_module.ready:
+            await run_job(a.lazy_module.get, "rssm-module")
 
     def publish(self, a: Analysis) -> None:
         enc = self.encoding
-        diags = [to_lsp(d, a.lines, enc, lambda s: self.location(s, a)) for d in a.diagnostics]
+        shown = a.diagnostics[:MAX_DIAGNOSTICS]
+        diags = [to_lsp(d, a.lines, enc, lambda s: self.location(s, a)) for d in shown]
+        if len(a.diagnostics) > len(shown):
+            diags.append(_more(len(a.diagnostics) - len(shown), diags[-1].range))
         self.text_document_publish_diagnostics(
             lsp.PublishDiagnosticsParams(uri=a.uri, version=a.version, diagnostics=diags))
 
@@ -252,7 +396,7 @@ class RssmServer(LanguageServer):
     def workspace_indexes(self, root: str | None, overrides: dict[Path, str]
                           ) -> list[SymbolIndex]:
         """Indexes of the .rssm files of the workspace that are not open (cached by mtime).
-        Runs in the worker thread: it gets the open documents' texts as arguments."""
+        Runs in a job's thread: it gets the open documents' texts as arguments."""
         if not root:
             return []
         from rssm_dsl.pipeline import compile_file
@@ -291,9 +435,9 @@ class RssmServer(LanguageServer):
             root = self.workspace.root_path
         except RuntimeError:
             root = None
-        loop = asyncio.get_running_loop()
-        others = await loop.run_in_executor(self.executor, self.workspace_indexes, root,
-                                            self.overrides())
+        overrides = self.overrides()
+        others = await run_job(lambda: self.workspace_indexes(root, overrides),
+                               "rssm-workspace")
         indexes = [a.index for a in self.analyses.values()] + others
         for ix in indexes:
             for o in ix.references(key):
@@ -304,27 +448,65 @@ class RssmServer(LanguageServer):
         return out
 
 
+def _more(count: int, at: lsp.Range) -> lsp.Diagnostic:
+    """The note that stands for the diagnostics beyond MAX_DIAGNOSTICS."""
+    return lsp.Diagnostic(
+        range=at, severity=lsp.DiagnosticSeverity.Information, source=SOURCE,
+        message=f"{count} more problems in this file are not shown (the editor shows the "
+        f"first {MAX_DIAGNOSTICS})\nhelp: run `rssmc check` on the file to see them all")
+
+
 server = RssmServer()
 
 
-def _report_parse_error(error: Exception, source: Any) -> None:
-    """Malformed JSON-RPC: answer with a JSON-RPC error (id null) and keep serving: a parse
-    error for text that is not JSON, an invalid request for JSON that is no message."""
+def classify(error: Exception) -> tuple[int, str] | None:
+    """The JSON-RPC error (id null) for a message that could not be handled: a parse error
+    for text that is not JSON, an invalid request for JSON that is no message."""
     if isinstance(error, _Answered):
-        return
-    if source is JsonRpcException:
-        if isinstance(error, ValueError):  # json.JSONDecodeError, a body that is not UTF-8
-            code, what = -32700, "Parse error"
-        else:
-            code, what = -32600, "Invalid request"
-        server.protocol._send_data({
-            "jsonrpc": "2.0", "id": None, "error": {"code": code, "message": f"{what}: {error}"},
-        })
-        return
-    LanguageServer.report_server_error(server, error, source)
+        return None
+    if isinstance(error, ValueError):   # json.JSONDecodeError, a body that is not UTF-8
+        return framing.PARSE_ERROR, f"Parse error: {error}"
+    if isinstance(error, RecursionError):
+        return framing.PARSE_ERROR, "Parse error: the JSON is nested too deeply"
+    return INVALID_REQUEST, f"Invalid request: {error}"
 
 
-server.report_server_error = _report_parse_error  # type: ignore[method-assign]
+# ---------------------------------------------------------------------- lifecycle
+@server.feature(lsp.INITIALIZE)
+def initialize(ls: RssmServer, params: lsp.InitializeParams) -> None:
+    use_lsp_lines(ls.workspace)
+
+
+@server.feature(lsp.SHUTDOWN)
+def shutdown(ls: RssmServer, *args: Any) -> None:
+    ls.stop_all()
+
+
+@server.feature(lsp.EXIT)
+def exit_(ls: RssmServer, *args: Any) -> None:
+    _terminate(0 if ls.rssm_protocol.shutdown_seen else 1)
+
+
+class _ClientErrors(logging.Filter):
+    """pygls logs the traceback of every error it answers; for the JSON-RPC errors raised on
+    purpose (invalid params of a request...) the one-line message is enough."""
+
+    def filter(self, record: logging.LogRecord) -> bool:
+        if record.exc_info and isinstance(record.exc_info[1], JsonRpcException):
+            record.exc_info = None
+            record.levelno, record.levelname = logging.INFO, "INFO"
+            return log.isEnabledFor(logging.INFO)
+        return True
+
+
+def _terminate(code: int) -> None:
+    """End the process now: analyses still running in their threads are abandoned."""
+    logging.shutdown()
+    for stream in (sys.stdout, sys.stderr, sys.__stdout__):
+        with contextlib.suppress(Exception):
+            if stream is not None:
+                stream.flush()
+    os._exit(code)
 
 
 # ---------------------------------------------------------------------- documents
@@ -351,6 +533,8 @@ def did_close(ls: RssmServer, params: lsp.DidCloseTextDocumentParams) -> None:
     timer = ls.timers.pop(uri, None)
     if timer is not None:
         timer.cancel()
+    ls._stop(uri)
+    ls._wake(uri)
     a = ls.analyses.pop(uri, None)
     ls.text_document_publish_diagnostics(lsp.PublishDiagnosticsParams(uri=uri, diagnostics=[]))
     if a is not None:
@@ -439,7 +623,8 @@ async def symbols(ls: RssmServer, params: lsp.DocumentSymbolParams
     a = await ls.current(params.text_document.uri)
     if a is None:
         return None
-    return document_symbols(a.module, a.lines, ls.encoding)
+    enc = ls.encoding
+    return await run_job(lambda: document_symbols(a.module, a.lines, enc), "rssm-outline")
 
 
 @server.feature(lsp.TEXT_DOCUMENT_COMPLETION,
@@ -450,6 +635,7 @@ async def completion(ls: RssmServer, params: lsp.CompletionParams) -> lsp.Comple
     a = ls.analyses.get(uri) or await ls.current(uri)
     if a is None or got is None or not a.analyzable:
         return None
+    await ls.ensure_module(a)
     await ls.ensure_index(a)
     lines = LineIndex(got[0])
     offset = lines.offset(params.position, ls.encoding)
@@ -514,9 +700,8 @@ async def formatting(ls: RssmServer, params: lsp.DocumentFormattingParams
     if got is None or "\x00" in got[0]:
         return None
     text = got[0]
-    loop = asyncio.get_running_loop()
     try:
-        result = await loop.run_in_executor(ls.executor, format_text, text, "<document>")
+        result = await run_job(lambda: format_text(text, "<document>"), "rssm-format")
     except FormatterBug:
         log.exception("formatter")
         return None
@@ -534,7 +719,10 @@ async def code_action(ls: RssmServer, params: lsp.CodeActionParams
     if not wanted:
         return []
     a = await ls.current(params.text_document.uri)
-    if a is None or a.module is None:
+    if a is None:
+        return []
+    await ls.ensure_module(a)
+    if a.module is None:
         return []
     fixer = Fixer(a.uri, a.module, a.text, a.lines, ls.encoding)
     out: list[lsp.CodeAction] = []
@@ -544,11 +732,24 @@ async def code_action(ls: RssmServer, params: lsp.CodeActionParams
 
 
 def serve() -> None:
-    """Run on stdio. Anything printed by mistake goes to stderr, never into the protocol."""
+    """Run on stdio until `exit` (or the end of the input), then end the process with the
+    LSP's exit code. Anything printed by mistake goes to stderr, never into the protocol."""
     logging.basicConfig(level=os.environ.get("RSSMC_LSP_LOG", "WARNING"), stream=sys.stderr)
+    logging.getLogger("pygls.protocol.json_rpc").addFilter(_ClientErrors())
+    sys.setswitchinterval(SWITCH_INTERVAL)
     stdin, stdout = sys.stdin.buffer, sys.stdout.buffer
     sys.stdout = sys.stderr
-    server.start_io(stdin, stdout)
+    _terminate(run(stdin, stdout))
 
 
-
+def run(stdin: BinaryIO, stdout: BinaryIO) -> int:
+    """Serve until the end of the input: the exit code (0 if `shutdown` was requested)."""
+    server._stop_event = threading.Event()
+    server.protocol.set_writer(StdoutWriter(stdout))
+    read = getattr(stdin, "read1", stdin.read)
+    try:
+        asyncio.run(framing.serve(read, server.rssm_protocol, classify, server._stop_event))
+    except BrokenPipeError:
+        log.error("the client closed the connection")
+        return 1
+    return 0 if server.rssm_protocol.shutdown_seen else 1

@@ -1,8 +1,13 @@
 """Document symbols: the outline of a file (system > agents > subsystems > behaviours, the
 system's properties, and the library declarations), from its AST (a partial one while the
-text has errors)."""
+text has errors). An outline has at most MAX_SYMBOLS entries (and the declarations that
+enclose them): a generated file with 80,000 agents would otherwise take seconds to convert
+and send, on every request."""
 
 from __future__ import annotations
+
+from collections.abc import Callable, Iterable
+from typing import TypeVar
 
 from lsprotocol import types as lsp
 
@@ -11,6 +16,8 @@ from rssm_dsl.source import Span
 from rssm_dsl.syntax import ast
 
 K = lsp.SymbolKind
+MAX_SYMBOLS = 10_000
+X = TypeVar("X")
 
 
 def _type_text(t: ast.TypeExpr) -> str:
@@ -23,10 +30,22 @@ class _Outline:
         self.lines = lines
         self.encoding = encoding
         self.file = file
+        self.left = MAX_SYMBOLS
+
+    def each(self, items: Iterable[X], fn: Callable[[X], lsp.DocumentSymbol]
+             ) -> list[lsp.DocumentSymbol]:
+        """fn of each item, while the outline has room."""
+        out: list[lsp.DocumentSymbol] = []
+        for x in items:
+            if self.left <= 0:
+                break
+            out.append(fn(x))
+        return out
 
     def sym(self, name: str, kind: lsp.SymbolKind, full: Span, sel: Span,
             detail: str | None = None,
             children: list[lsp.DocumentSymbol] | None = None) -> lsp.DocumentSymbol:
+        self.left -= 1
         rng = self.lines.range(full, self.encoding)
         sel_rng = self.lines.range(sel, self.encoding)
         # the selection range must be contained in the full range
@@ -45,49 +64,49 @@ class _Outline:
                         f"{b.direction.value}: {_type_text(b.type)}{peer}{mode}")
 
     def behaviour(self, bd: ast.BehaviourDecl) -> lsp.DocumentSymbol:
-        kids = [self.sym(f"update {u.target}", K.Function, u.span, u.target_span,
-                         "partial function" + ("" if u.plain else f", {len(u.cases)} cases"))
-                for u in bd.updates]
-        kids += [self.sym(c.name, K.Event, c.span, c.name_span, f"{c.kind} condition")
-                 for c in bd.conditions]
+        kids = self.each(bd.updates, lambda u: self.sym(
+            f"update {u.target}", K.Function, u.span, u.target_span,
+            "partial function" + ("" if u.plain else f", {len(u.cases)} cases")))
+        kids += self.each(bd.conditions, lambda c: self.sym(
+            c.name, K.Event, c.span, c.name_span, f"{c.kind} condition"))
         return self.sym(bd.name, K.Method, bd.span, bd.name_span, "behaviour", kids)
 
     def subsystem(self, s: ast.SubsystemDecl) -> lsp.DocumentSymbol:
-        kids = [self.sym(p.name, K.Constant, p.span, p.name_span,
-                         f"param: {_type_text(p.type)}") for p in s.params]
-        kids += [self.sym(m.name, K.Variable, m.span, m.name_span,
-                          f"memory: {_type_text(m.type)}") for m in s.memory]
-        kids += [self.buffer(b) for b in s.buffers]
-        kids += [self.behaviour(bd) for bd in s.behaviours]
+        kids = self.each(s.params, lambda p: self.sym(
+            p.name, K.Constant, p.span, p.name_span, f"param: {_type_text(p.type)}"))
+        kids += self.each(s.memory, lambda m: self.sym(
+            m.name, K.Variable, m.span, m.name_span, f"memory: {_type_text(m.type)}"))
+        kids += self.each(s.buffers, self.buffer)
+        kids += self.each(s.behaviours, self.behaviour)
         freq = f" @ {s.frequency.hertz:g} Hz" if s.frequency else ""
         return self.sym(s.name, K.Class, s.span, s.name_span,
                         f"{s.kind.value} subsystem{freq}", kids)
 
     def agent(self, a: ast.AgentDecl) -> lsp.DocumentSymbol:
-        kids = [self.subsystem(s) for s in a.subsystems]
-        kids += [self.sym(d.name, K.Object, d.span, d.name_span,
-                          f"real {d.kind.value}: {d.device}") for d in a.devices]
+        kids = self.each(a.subsystems, self.subsystem)
+        kids += self.each(a.devices, lambda d: self.sym(
+            d.name, K.Object, d.span, d.name_span, f"real {d.kind.value}: {d.device}"))
         return self.sym(a.name, K.Module, a.span, a.name_span, "agent", kids)
 
     def decl(self, d: ast.Decl) -> lsp.DocumentSymbol:
         match d:
             case ast.SystemDecl():
-                kids = [self.agent(a) for a in d.agents]
-                kids += [self.sym(p.name, K.Property, p.span, p.name_span,
-                                  "always property" if p.kind == "always"
-                                  else "response property (whenever ... eventually ...)")
-                         for p in d.properties]
+                kids = self.each(d.agents, self.agent)
+                kids += self.each(d.properties, lambda p: self.sym(
+                    p.name, K.Property, p.span, p.name_span,
+                    "always property" if p.kind == "always"
+                    else "response property (whenever ... eventually ...)"))
                 return self.sym(d.name, K.Namespace, d.span, d.name_span, "system", kids)
             case ast.RecordDecl():
-                fields = [self.sym(f.name, K.Field, f.span, f.span, _type_text(f.type))
-                          for f in d.fields]
+                fields = self.each(d.fields, lambda f: self.sym(
+                    f.name, K.Field, f.span, f.span, _type_text(f.type)))
                 return self.sym(d.name, K.Struct, d.span, d.name_span, "record", fields)
             case ast.AliasDecl():
                 return self.sym(d.name, K.TypeParameter, d.span, d.name_span,
                                 f"type = {_type_text(d.type)}")
             case ast.EnumDecl():
-                members = [self.sym(m.name, K.EnumMember, m.span, m.span, "member")
-                           for m in d.members]
+                members = self.each(d.members, lambda m: self.sym(
+                    m.name, K.EnumMember, m.span, m.span, "member"))
                 return self.sym(d.name, K.Enum, d.span, d.name_span, "enum", members)
             case ast.ConstDecl():
                 return self.sym(d.name, K.Constant, d.span, d.name_span, "const")
@@ -96,9 +115,9 @@ class _Outline:
                 return self.sym(d.name, K.Function, d.span, d.name_span,
                                 f"extern ({params}) -> {_type_text(d.result)}")
             case ast.DeviceDecl():
-                kids = [self.buffer(b) for b in d.buffers]
-                kids += [self.sym(p.name, K.Constant, p.span, p.name_span, "param")
-                         for p in d.params]
+                kids = self.each(d.buffers, self.buffer)
+                kids += self.each(d.params, lambda p: self.sym(
+                    p.name, K.Constant, p.span, p.name_span, "param"))
                 return self.sym(d.name, K.Interface, d.span, d.name_span,
                                 f"device {d.kind.value}", kids)
         raise AssertionError(d)
@@ -109,4 +128,4 @@ def document_symbols(module: ast.Module | None, lines: LineIndex,
     if module is None:
         return []
     outline = _Outline(lines, encoding, module.path)
-    return [outline.decl(d) for d in module.decls]
+    return outline.each(module.decls, outline.decl)

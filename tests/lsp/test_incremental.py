@@ -129,3 +129,22 @@ def test_edits_inside_an_agent_are_reparsed_alone() -> None:
     # an edit outside every agent: a full analysis
     t4 = t3.replace("import std.types", "import std.types\n")
     assert analyze_text("file:///alone", path, shown, t4, 4, {}, c).how == "full"
+
+
+def test_an_incremental_analysis_keeps_the_checks_of_the_loader() -> None:
+    """What the loader checks in a file it reads is reported after an edit too: a line
+    separator in a comment (W012, the edit stays incremental), a name too long for a file
+    name (E011, an error that stops the compiler's analysis: the whole text is analysed)."""
+    path = Path("/tmp/rssm-incremental-test/loader.rssm")
+    shown = display_path(path)
+    text = spec(4)
+    a = analyze_text("file:///loader", path, shown, text, 1, {}, None)
+    t2 = text.replace("agent a2 {\n", "agent a2 {\n    // one\u2028two\n", 1)
+    b = analyze_text("file:///loader", path, shown, t2, 2, {}, a)
+    assert b.how == "incremental"
+    assert _diags(b) == _diags(analyze_text("file:///loader", path, shown, t2, 2, {}, None))
+    assert sorted(d.code for d in b.diagnostics) == ["E501", "W012"]
+    t3 = t2.replace("agent a2 {", f"agent a2{'x' * 120} {{", 1)
+    c = analyze_text("file:///loader", path, shown, t3, 3, {}, b)
+    assert _diags(c) == _diags(analyze_text("file:///loader", path, shown, t3, 3, {}, None))
+    assert "E011" in [d.code for d in c.diagnostics]

@@ -3,102 +3,13 @@ positions out of range. It answers with errors and stays up."""
 
 from __future__ import annotations
 
-import json
-import subprocess
-import time
 from pathlib import Path
 from typing import Any
 
 import pytest
 
-from tests.lsp.conftest import SERVER
+from tests.lsp.raw import RawClient
 from tests.lsp.specs import GOOD
-
-TIMEOUT = 60.0
-
-
-class RawClient:
-    """JSON-RPC over the server's stdio, byte by byte, to send what no library would."""
-
-    def __init__(self) -> None:
-        self.proc = subprocess.Popen(SERVER, stdin=subprocess.PIPE, stdout=subprocess.PIPE,
-                                     stderr=subprocess.DEVNULL)
-        self.next_id = 0
-        self.notifications: list[dict[str, Any]] = []
-
-    def send_raw(self, body: bytes) -> None:
-        assert self.proc.stdin is not None
-        self.proc.stdin.write(f"Content-Length: {len(body)}\r\n\r\n".encode() + body)
-        self.proc.stdin.flush()
-
-    def send(self, message: dict[str, Any]) -> None:
-        self.send_raw(json.dumps(message).encode())
-
-    def read(self) -> dict[str, Any]:
-        assert self.proc.stdout is not None
-        length = 0
-        while True:
-            line = self.proc.stdout.readline()
-            if not line:
-                raise AssertionError("the server closed its output")
-            if line in (b"\r\n", b"\n"):
-                break
-            if line.lower().startswith(b"content-length:"):
-                length = int(line.split(b":")[1])
-        message: dict[str, Any] = json.loads(self.proc.stdout.read(length))
-        return message
-
-    def request(self, method: str, params: Any) -> dict[str, Any]:
-        self.next_id += 1
-        self.send({"jsonrpc": "2.0", "id": self.next_id, "method": method, "params": params})
-        return self.response(self.next_id)
-
-    def response(self, msg_id: int | None) -> dict[str, Any]:
-        end = time.monotonic() + TIMEOUT
-        while time.monotonic() < end:
-            msg = self.read()
-            if "method" in msg and "id" not in msg:
-                self.notifications.append(msg)
-                continue
-            if "method" in msg:   # a request from the server: answer it
-                self.send({"jsonrpc": "2.0", "id": msg["id"], "result": None})
-                continue
-            if msg.get("id") == msg_id:
-                return msg
-        raise AssertionError(f"no response to {msg_id}")
-
-    def notify(self, method: str, params: Any) -> None:
-        self.send({"jsonrpc": "2.0", "method": method, "params": params})
-
-    def diagnostics(self, uri: str) -> list[dict[str, Any]]:
-        end = time.monotonic() + TIMEOUT
-        while time.monotonic() < end:
-            for msg in self.notifications:
-                if msg["method"] == "textDocument/publishDiagnostics" \
-                        and msg["params"]["uri"] == uri:
-                    self.notifications.remove(msg)
-                    return list(msg["params"]["diagnostics"])
-            msg = self.read()
-            if "method" in msg and "id" not in msg:
-                self.notifications.append(msg)
-        raise AssertionError(f"no diagnostics for {uri}")
-
-    def open(self, uri: str, text: str) -> None:
-        self.notify("textDocument/didOpen", {"textDocument": {
-            "uri": uri, "languageId": "rssm", "version": 1, "text": text}})
-
-    def alive(self) -> None:
-        """The server answers a request (hover on nothing) after whatever came before."""
-        reply = self.request("textDocument/hover", {
-            "textDocument": {"uri": "file:///nowhere.rssm"},
-            "position": {"line": 0, "character": 0}})
-        assert "result" in reply or "error" in reply
-        assert self.proc.poll() is None
-
-    def close(self) -> None:
-        self.request("shutdown", None)
-        self.notify("exit", None)
-        self.proc.wait(timeout=TIMEOUT)
 
 
 @pytest.fixture(scope="module")
