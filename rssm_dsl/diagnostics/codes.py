@@ -36,6 +36,9 @@ CODES: tuple[Code, ...] = (
     Code("E008", "nesting-too-deep", _E, "expressions or brackets nested too deeply"),
     Code("E009", "import-not-found", _E, "an imported module cannot be found"),
     Code("E010", "import-cycle", _E, "modules import each other in a cycle"),
+    Code("E011", "name-unusable-as-file-name", _E, "a name too long or otherwise unusable as the file name it becomes"),
+    Code("W012", "line-separator-in-comment", _W, "U+2028/U+2029/U+0085 in a comment do not end the line"),
+    Code("E013", "literal-too-large", _E, "a number literal with more digits than the compiler reads"),
     # names
     Code("E101", "duplicate-name", _E, "a name is declared twice in the same scope"),
     Code("E102", "undefined-name", _E, "a name that is not declared"),

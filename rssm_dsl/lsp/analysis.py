@@ -41,7 +41,7 @@ log = logging.getLogger("rssmc.lsp")
 
 # Larger texts are not analyzed live (the compiler itself accepts up to 8 MB).
 MAX_LIVE_CHARS = 2_000_000
-SYNTAX_CODES = frozenset({"E005", "E006", "E007", "E008"})
+SYNTAX_CODES = frozenset({"E005", "E006", "E007", "E008", "E013"})
 
 
 @contextmanager

@@ -57,6 +57,7 @@ class DeclarationPass:
         self.checker = ExprChecker(bag)
         self._type_decls: dict[str, ast.RecordDecl | ast.AliasDecl | ast.EnumDecl] = {}
         self._resolving: set[str] = set()
+        self._const_scope: dict[str, Symbol] = {}
 
     def _declare(self, name: str, span: Span) -> bool:
         if name in self.g.spans:
@@ -77,6 +78,9 @@ class DeclarationPass:
                 self._type_decls[d.name] = d
         for name in list(self._type_decls):
             self._resolve_named(name)
+        # what a constant's value may name, kept up to date as constants are declared (the
+        # types are all resolved by now): building it anew for each constant was quadratic
+        self._const_scope = self.g.symbols()
         for d in decls:
             match d:
                 case ast.ConstDecl():
@@ -181,19 +185,23 @@ class DeclarationPass:
         if not self._declare(d.name, d.name_span):
             return
         want = self.resolve_type(d.type) if d.type is not None else None
-        scope = Scope(self.g.symbols(), self.g.externs, no_calls="a constant")
+        scope = Scope(self._const_scope, self.g.externs, no_calls="a constant")
         got = self.checker.check(d.value, scope, want)
         if got is None or (d.type is not None and want is None):
-            self.g.broken[d.name] = Symbol("const", None, d.name_span)
+            self._broken_const(d)
             return
         if want is not None and not assignable(got, want):
             self.bag.error("E201", f"const '{d.name}' is declared {want} but its value is {got}",
                            d.value.span)
-            self.g.broken[d.name] = Symbol("const", None, d.name_span)
+            self._broken_const(d)
             return
         if want is not None:
             self.checker.fits(d.value, want, f"const '{d.name}'")
         self.g.consts[d.name] = Const(d.name, want or got, d.value, d.span)
+        self._const_scope[d.name] = Symbol("const", want or got, d.span)
+
+    def _broken_const(self, d: ast.ConstDecl) -> None:
+        self.g.broken[d.name] = self._const_scope[d.name] = Symbol("const", None, d.name_span)
 
     def _binding(self, binding: str, span: Span, what: str) -> None:
         """A Python binding is `package.module:name`."""

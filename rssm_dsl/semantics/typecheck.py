@@ -7,6 +7,7 @@ from collections.abc import Callable, Iterable, Mapping
 from dataclasses import dataclass, field
 from typing import Protocol
 
+from rssm_core.values import INT_MAX, INT_MIN
 from rssm_dsl.diagnostics import DiagnosticBag
 from rssm_dsl.semantics.model import Extern
 from rssm_dsl.semantics.types import (
@@ -74,9 +75,20 @@ def enum_symbols(types: Iterable[tuple[str, Type]], span: Span) -> dict[str, Sym
     return {n: Symbol("enum", t, span) for n, t in types if isinstance(t, EnumT)}
 
 
+INT_RANGE_HINT = f"an int is a 64-bit integer, from {INT_MIN} to {INT_MAX}"
+
+
+def int_literal(e: ast.Expr) -> int | None:
+    """The value of an int literal (None for anything else)."""
+    match e:
+        case ast.Literal(value=int() as v) if not isinstance(v, bool):
+            return v
+    return None
+
+
 def constant_int(e: ast.Expr) -> int | None:
     """The value of an int expression made of literals, unary minus, ``+``, ``-`` and ``*``
-    (None for anything else)."""
+    (None for anything else), computed exactly (in Python's unbounded ints)."""
     match e:
         case ast.Literal(value=int() as v) if not isinstance(v, bool):
             return v
@@ -119,6 +131,9 @@ class Scope:
     # where external operations cannot be called (initial values and constants are computed
     # before the run, by every backend alike), e.g. "the initial value of param 'k'"
     no_calls: str | None = None
+    # there, the constant ints met so far (as the backends compute them, in 64 bits), for the
+    # operations that use them: id of the expression -> (the expression, its value)
+    constants: dict[int, tuple[ast.Expr, int]] = field(default_factory=dict)
 
     def lookup(self, name: str) -> Symbol | None:
         return self.extra.get(name) or self.symbols.get(name)
@@ -130,6 +145,38 @@ class Scope:
 class ExprChecker:
     def __init__(self, bag: DiagnosticBag) -> None:
         self.bag = bag
+
+    # ------------------------------------------------------------ constant ints
+    def _constant(self, e: ast.Expr, value: int, scope: Scope, literal: bool = False) -> None:
+        """A constant int met while checking. An int literal outside 64 bits is E214
+        wherever it is written. Where the value is computed before the run (a constant, an
+        initial value) it is recorded for the operation that uses it, and an operation whose
+        value lies outside 64 bits is E214; in a statement, that operation fails when it
+        runs (E802), as every backend computes it."""
+        in_range = INT_MIN <= value <= INT_MAX
+        if literal and not in_range:
+            self.bag.error("E214", f"value {value} is outside the 64-bit range of int", e.span,
+                           INT_RANGE_HINT + " (write a float, such as 1e19, for a larger number)")
+        if scope.no_calls is None or literal:
+            return
+        if in_range:
+            scope.constants[id(e)] = (e, value)
+        else:
+            self.bag.error("E214", f"value {value} is outside the 64-bit range of int, in "
+                           f"{scope.no_calls}", e.span, INT_RANGE_HINT)
+
+    @staticmethod
+    def _value(e: ast.Expr, scope: Scope) -> int | None:
+        """The value of a checked constant int of a context computed before the run (None
+        for anything else, and for one outside 64 bits)."""
+        literal = int_literal(e)
+        if literal is None and isinstance(e, ast.Unary) and e.op == "-":
+            negated = int_literal(e.operand)
+            literal = -negated if negated is not None else None
+        if literal is not None:
+            return literal if INT_MIN <= literal <= INT_MAX else None
+        found = scope.constants.get(id(e))
+        return found[1] if found is not None and found[0] is e else None
 
     # ------------------------------------------------------------ expressions
     def check(self, e: ast.Expr, scope: Scope, expected: Type | None = None) -> Type | None:
@@ -148,7 +195,9 @@ class ExprChecker:
     def fits(self, e: ast.Expr, want: Type, what: str) -> None:
         """Report a constant int stored into a range it lies outside (E214): a literal, or
         literals combined by ``- + *``, also as an item of an array literal or a branch of
-        ``if``. Other values are checked when they are stored, at run time."""
+        ``if``. Other values are checked when they are stored, at run time. (An int literal
+        outside 64 bits, and an operation overflowing them in a constant or an initial value,
+        are reported when they are checked: _constant.)"""
         match e:
             case ast.IfExpr():
                 self.fits(e.then, want, what)
@@ -161,14 +210,17 @@ class ExprChecker:
         if not isinstance(want, RangeT):
             return
         value = constant_int(e)
-        if value is not None and value not in want:
+        if value is not None and INT_MIN <= value <= INT_MAX and value not in want:
             self.bag.error("E214", f"value {value} is outside {want} of {what}", e.span,
                            f"{what} holds the integers from {want.lo} to {want.hi}")
 
     def _Literal(self, e: ast.Literal, scope: Scope, expected: Type | None) -> Type | None:
         if isinstance(e.value, bool):
             return BOOL
-        return INT if isinstance(e.value, int) else FLOAT
+        if isinstance(e.value, int):
+            self._constant(e, e.value, scope, literal=True)
+            return INT
+        return FLOAT
 
     def _Name(self, e: ast.Name, scope: Scope, expected: Type | None) -> Type | None:
         sym = scope.lookup(e.name)
@@ -234,9 +286,16 @@ class ExprChecker:
         return t.element
 
     def _Unary(self, e: ast.Unary, scope: Scope, expected: Type | None) -> Type | None:
+        literal = int_literal(e.operand) if e.op == "-" else None
+        if literal is not None:   # a negative int literal (-9223372036854775808 is one)
+            self._constant(e, -literal, scope, literal=True)
+            return INT
         t = self.check(e.operand, scope, expected)
         if t is None:
             return None
+        value = self._value(e.operand, scope) if e.op == "-" and scope.no_calls else None
+        if value is not None:
+            self._constant(e, -value, scope)
         if e.op == "not":
             if t != BOOL:
                 self.bag.error("E203", f"'not' needs a bool, not {t}", e.span)
@@ -263,12 +322,17 @@ class ExprChecker:
             if not (is_numeric(lt) and is_numeric(rt)):
                 self.bag.error("E203", f"'{e.op}' compares numbers, not {lt} and {rt}", e.span)
             return BOOL
-        return self._arith(e, lt, rt)
+        return self._arith(e, lt, rt, scope)
 
-    def _arith(self, e: ast.Binary, lt: Type, rt: Type) -> Type | None:
+    def _arith(self, e: ast.Binary, lt: Type, rt: Type, scope: Scope) -> Type | None:
         if is_numeric(lt) and is_numeric(rt):
             if e.op == "/" or FLOAT in (lt, rt):
                 return FLOAT
+            if e.op in ("+", "-", "*") and scope.no_calls is not None:
+                a, b = self._value(e.left, scope), self._value(e.right, scope)
+                if a is not None and b is not None:
+                    self._constant(e, a + b if e.op == "+" else a - b if e.op == "-" else a * b,
+                                   scope)
             return INT
         if is_numeric_array(lt) and is_numeric_array(rt) and e.op in "+-*/":
             assert isinstance(lt, ArrayT) and isinstance(rt, ArrayT)

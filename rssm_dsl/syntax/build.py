@@ -3,29 +3,52 @@
 The callbacks run on each LALR reduction (no parse tree is built, nothing recurses), and
 each node's span runs from its first to its last token (keywords the grammar drops are not
 part of it). Nesting deeper than MAX_DEPTH is refused (E008) so that later passes, which
-recurse over expressions, never hit Python's recursion limit."""
+recurse over expressions, never hit Python's recursion limit (the parser reports most of it
+earlier, as the tokens come: parser._Nesting). A number literal the compiler cannot read,
+too long or too large for its type, is reported at the literal (E013, see problems())."""
 
 from __future__ import annotations
 
+import codecs
+import re
 import threading
+import warnings
 from dataclasses import dataclass
 from typing import Any, TypeVar
 
 from lark import Token
 
 from rssm_core.modes import Mode
+from rssm_core.values import INT_MAX, INT_MIN
+from rssm_dsl.diagnostics import Diagnostic
 from rssm_dsl.source import SourceFile, Span
 from rssm_dsl.syntax import ast
 
 MAX_DEPTH = 64
+# The longest number literals read (E013): an int has at most the digits of the largest
+# int (leading zeros aside); a float literal at most MAX_NUMBER_CHARS characters.
+MAX_INT_DIGITS = len(str(INT_MAX))
+MAX_NUMBER_CHARS = 400
+_INT_RANGE = f"from {INT_MIN} to {INT_MAX}"
 N = TypeVar("N")
 
 
-@dataclass(frozen=True, slots=True)
 class _Node:
-    """What a rule callback knows about its rule besides the children: the span."""
+    """What a rule callback knows about its rule besides the children: the span, computed
+    when the callback asks for it (most callbacks of expressions do not)."""
 
-    span: Span
+    __slots__ = ("_builder", "_children", "_span")
+
+    def __init__(self, builder: AstBuilder, children: list[Any]) -> None:
+        self._builder = builder
+        self._children = children
+        self._span: Span | None = None
+
+    @property
+    def span(self) -> Span:
+        if self._span is None:
+            self._span = self._builder.children_span(self._children)
+        return self._span
 
 
 @dataclass(frozen=True, slots=True)
@@ -42,9 +65,10 @@ class _Operand:
 
 
 # binding power of binary operators; `not` takes comparisons and tighter, `-` only an operand
-_BINARY = {"or": 1, "and": 2, "==": 4, "!=": 4, "<": 4, "<=": 4, ">": 4, ">=": 4,
-           "+": 5, "-": 5, "*": 6, "/": 6, "%": 6}
-_PREFIX = {"not": 4, "-": 7}
+# (the parser's early E008 check, parser._Nesting, climbs with these too)
+BINARY_PRECEDENCE = {"or": 1, "and": 2, "==": 4, "!=": 4, "<": 4, "<=": 4, ">": 4, ">=": 4,
+                     "+": 5, "-": 5, "*": 6, "/": 6, "%": 6}
+PREFIX_PRECEDENCE = {"not": 4, "-": 7}
 
 
 class _Climber:
@@ -62,12 +86,12 @@ class _Climber:
             left = item.expr
         else:
             op = str(item)
-            operand = self.parse(_PREFIX[op])
+            operand = self.parse(PREFIX_PRECEDENCE[op])
             span = self.b._tok(item).to(operand.span)
             left = self.b._deep(ast.Unary(span, op, operand), [operand], span)
         while self.i < len(self.stream):
             tok = self.stream[self.i]
-            prec = _BINARY[str(tok)]
+            prec = BINARY_PRECEDENCE[str(tok)]
             if prec < min_prec:
                 break
             self.i += 1
@@ -78,21 +102,28 @@ class _Climber:
 
 
 class NestingTooDeep(Exception):
-    def __init__(self, span: Span, limit: int) -> None:
-        super().__init__(f"nesting deeper than {limit}")
+    def __init__(self, span: Span, limit: int, message: str | None = None) -> None:
+        self.message = message or f"nesting deeper than {limit} levels"
+        super().__init__(self.message)
         self.span = span
         self.limit = limit
 
 
-def _unquote(s: str) -> str:
-    body = s[1:-1]
-    return body.encode("utf-8").decode("unicode_escape") if "\\" in body else body
+# An escape of a string: those of Python's strings (docs/language.md, "Lexical structure")
+_ESCAPE = re.compile(r"\\(x[0-9a-fA-F]{2}|u[0-9a-fA-F]{4}|U[0-9a-fA-F]{8}|N\{[^}]*\}|[0-7]{1,3}"
+                     r"|[\\'\"abfnrtv]|.)")
 
 
 class AstBuilder:
     def __init__(self, source: SourceFile) -> None:
         self.source = source
-        self._depth: dict[int, int] = {}
+        # id of a node -> (the node, kept alive so that its id is not reused; its depth)
+        self._depth: dict[int, tuple[object, int]] = {}
+        self._problems: dict[int, Diagnostic] = {}   # by offset (trial parses repeat)
+
+    def problems(self) -> list[Diagnostic]:
+        """The literals that could not be read (E013, E005), in the order of the text."""
+        return [self._problems[k] for k in sorted(self._problems)]
 
     # ------------------------------------------------------------- helpers
     @staticmethod
@@ -133,11 +164,75 @@ class AstBuilder:
         return first.to(last)
 
     def _deep(self, node: N, children: list[Any], span: Span) -> N:
-        depth = 1 + max((self._depth.get(id(c), 0) for c in children), default=0)
+        depths = self._depth
+        depth = 1
+        for c in children:
+            known = depths.get(id(c))
+            if known is not None and known[1] >= depth:
+                depth = known[1] + 1
         if depth > MAX_DEPTH:
             raise NestingTooDeep(span, MAX_DEPTH)
-        self._depth[id(node)] = depth
+        depths[id(node)] = (node, depth)
         return node
+
+    # ------------------------------------------------------------- literals
+    def _problem(self, code: str, message: str, span: Span, hint: str) -> None:
+        self._problems[span.offset] = Diagnostic(code, message, span, hint)
+
+    def _too_large(self, tok: Token, message: str, hint: str) -> None:
+        self._problem("E013", message, self._tok(tok), hint)
+
+    def _string(self, tok: Token) -> str:
+        """The text of a STRING token, its escapes replaced (an unknown or malformed one is
+        E005 at the escape, and stands for itself)."""
+        body = str(tok)[1:-1]
+        if "\\" not in body:
+            return body
+
+        def escape(m: re.Match[str]) -> str:
+            try:
+                with warnings.catch_warnings():
+                    warnings.simplefilter("error")     # an unknown escape only warns
+                    return codecs.decode(m.group(), "unicode_escape")
+            except (UnicodeDecodeError, DeprecationWarning):
+                pass
+            if tok.start_pos is not None:
+                at = tok.start_pos + 1 + m.start()
+                self._problem("E005", f"unknown escape '{m.group()[:12]}' in a string",
+                              self.source.span(at, at + len(m.group())),
+                              'a string\'s escapes are those of Python: \\", \\\\, \\n, '
+                              "\\t, \\x41, \\u00e9, ...")
+            return m.group(1)
+
+        return _ESCAPE.sub(escape, body)
+
+    def _int(self, tok: Token) -> int:
+        """The value of an INT token; 0 (and E013) when it has more digits than an int."""
+        digits = str(tok).lstrip("0")
+        if len(digits) > MAX_INT_DIGITS:
+            self._too_large(tok, f"integer literal of {len(digits)} digits is too large for "
+                            "int, a 64-bit integer",
+                            f"an int is {_INT_RANGE} ({MAX_INT_DIGITS} digits); write a "
+                            "float (e.g. 1e30) for a larger number")
+            return 0
+        return int(digits or "0")
+
+    def _float(self, tok: Token) -> float:
+        """The value of a FLOAT token; 0.0 (and E013) when it is too long to be read or
+        too large for a float."""
+        text = str(tok)
+        if len(text) > MAX_NUMBER_CHARS:
+            self._too_large(tok, f"number literal of {len(text)} characters: the compiler "
+                            f"reads at most {MAX_NUMBER_CHARS}",
+                            "a float has 17 significant digits: write it with fewer")
+            return 0.0
+        value = float(text)
+        if value == float("inf"):
+            shown = text if len(text) <= 40 else text[:39] + "…"
+            self._too_large(tok, f"number {shown} is too large for a float (a 64-bit IEEE 754 "
+                            "number)", "the largest float is about 1.8e308")
+            return 0.0
+        return value
 
     # ------------------------------------------------------------- module level
     def r_start(self, t: _Node, k: list[Any]) -> ast.Module:
@@ -153,7 +248,7 @@ class AstBuilder:
         return ".".join(str(x) for x in k), False, self._span(t)
 
     def r_string_path(self, t: _Node, k: list[Any]) -> tuple[str, bool, Span]:
-        return _unquote(str(k[0])), True, self._span(t)
+        return self._string(k[0]), True, self._span(t)
 
     def r_record_decl(self, t: _Node, k: list[Any]) -> ast.RecordDecl:
         return ast.RecordDecl(self._span(t), str(k[0]), self._tok(k[0]), tuple(k[1:]))
@@ -175,14 +270,14 @@ class AstBuilder:
         return ast.NamedType(self._span(t), str(k[0]))
 
     def r_range_bound(self, t: _Node, k: list[Any]) -> tuple[int, Span]:
-        value = int(k[-1])
+        value = self._int(k[-1])
         return (-value if len(k) > 1 else value), self._span(t)
 
     def r_range_type(self, t: _Node, k: list[Any]) -> ast.RangeType:
         return ast.RangeType(self._span(t), k[0][0], k[1][0])
 
     def r_array_type(self, t: _Node, k: list[Any]) -> ast.ArrayType:
-        return self._deep(ast.ArrayType(self._span(t), k[0], int(k[1])), k, self._span(t))
+        return self._deep(ast.ArrayType(self._span(t), k[0], self._int(k[1])), k, self._span(t))
 
     def r_const_decl(self, t: _Node, k: list[Any]) -> ast.ConstDecl:
         return ast.ConstDecl(self._span(t), str(k[0]), self._tok(k[0]), k[1], k[2])
@@ -190,7 +285,7 @@ class AstBuilder:
     def r_extern_decl(self, t: _Node, k: list[Any]) -> ast.ExternDecl:
         params = tuple(x for x in k[1:-2] if isinstance(x, ast.Param))
         return ast.ExternDecl(self._span(t), str(k[0]), self._tok(k[0]), params, k[-2],
-                              _unquote(str(k[-1])), self._tok(k[-1]))
+                              self._string(k[-1]), self._tok(k[-1]))
 
     def r_param(self, t: _Node, k: list[Any]) -> ast.Param:
         return ast.Param(self._span(t), str(k[0]), k[1])
@@ -210,7 +305,7 @@ class AstBuilder:
         )
 
     def r_binding_decl(self, t: _Node, k: list[Any]) -> ast.BindingDecl:
-        return ast.BindingDecl(self._span(t), _unquote(str(k[0])))
+        return ast.BindingDecl(self._span(t), self._string(k[0]))
 
     # ------------------------------------------------------------- structure
     def r_system_decl(self, t: _Node, k: list[Any]) -> ast.SystemDecl:
@@ -402,7 +497,7 @@ class AstBuilder:
         stream: list[Any] = []
         for i, item in enumerate(k):
             if i % 2:
-                if not (isinstance(item, Token) and str(item) in _BINARY):
+                if not (isinstance(item, Token) and str(item) in BINARY_PRECEDENCE):
                     return k[0]  # type: ignore[no-any-return]  # debris of error recovery
                 stream.append(item)  # a binary operator token
             elif isinstance(item, _Prefixed):
@@ -417,7 +512,7 @@ class AstBuilder:
 
     def r_prefixed(self, t: _Node, k: list[Any]) -> _Prefixed:
         # only operator tokens precede the operand (error recovery may leave other debris)
-        prefixes = tuple(x for x in k[:-1] if isinstance(x, Token) and str(x) in _PREFIX)
+        prefixes = tuple(x for x in k[:-1] if isinstance(x, Token) and str(x) in PREFIX_PRECEDENCE)
         return _Prefixed(prefixes, k[-1])
 
     def r_field(self, t: _Node, k: list[Any]) -> ast.Expr:
@@ -435,7 +530,7 @@ class AstBuilder:
 
     def r_number(self, t: _Node, k: list[Any]) -> ast.Expr:
         tok: Token = k[0]
-        value: int | float = int(tok) if tok.type == "INT" else float(tok)
+        value: int | float = self._int(tok) if tok.type == "INT" else self._float(tok)
         return ast.Literal(self._tok(tok), value)
 
     def r_true(self, t: _Node, k: list[Any]) -> ast.Expr:
@@ -472,11 +567,11 @@ class Callbacks:
 
         def callback(children: list[Any]) -> Any:
             builder: AstBuilder = _current.builder
-            return method(builder, _Node(builder.children_span(children)), children)
+            return method(builder, _Node(builder, children), children)
 
         return callback
 
 
-def building(builder: AstBuilder) -> None:
+def building(builder: AstBuilder | None) -> None:
     """Make `builder` receive the callbacks of the parses this thread runs next."""
     _current.builder = builder
