@@ -23,9 +23,13 @@ from rssm_dsl.semantics.types import (
     RecordT,
     Type,
     assignable,
+    scalar_count,
 )
 from rssm_dsl.source import Span
 from rssm_dsl.syntax import ast
+
+# the most numbers one value may hold (8 MB of floats: a 640x480 RGB image fits)
+MAX_VALUES = 1 << 20
 
 BINDING_RE = re.compile(r"^[A-Za-z_][A-Za-z0-9_]*(\.[A-Za-z_][A-Za-z0-9_]*)*:[A-Za-z_][A-Za-z0-9_]*$")
 
@@ -108,6 +112,14 @@ class DeclarationPass:
                 return None
             if t.size < 1:
                 self.bag.error("E206", "an array needs at least one element", t.span)
+                return None
+            values = t.size * scalar_count(elem)
+            if values > MAX_VALUES:
+                self.bag.error("E206", f"an array of {values:,} values is larger than the "
+                               f"{MAX_VALUES:,} a value may hold", t.span,
+                               "every backend holds each value whole in memory, and copies it "
+                               "as it is sent: keep large data in a device or an external "
+                               "operation")
                 return None
             return ArrayT(elem, t.size)
         if isinstance(t, ast.RangeType):

@@ -120,6 +120,15 @@ def join(a: Type, b: Type) -> Type | None:
     return None
 
 
+def scalar_count(t: Type) -> int:
+    """How many scalars (numbers, bools, enum members) a value of type ``t`` holds."""
+    if isinstance(t, ArrayT):
+        return t.size * scalar_count(t.element)
+    if isinstance(t, RecordT):
+        return sum(scalar_count(f) for _, f in t.fields)
+    return 1
+
+
 def descriptor(t: Type) -> tuple[Any, ...]:
     """The value descriptor of a type, as the semantics core reads it (rssm_core.values):
     ``("bool",)``, ``("int",)``, ``("float",)``, ``("enum", NAME, MEMBERS)``,
