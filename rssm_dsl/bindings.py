@@ -283,20 +283,23 @@ def static_lookup(binding: str, dirs: Sequence[Path]) -> Definition | None:
 
 
 _OPEN = "*"                # the source may define names it does not spell out
-_parsed: dict[tuple[Path, int, int], dict[str, Definition] | None] = {}
+# file -> (its size and time when read, what it defines): one entry per file, renewed when
+# the file changes (the language server checks again at every edit)
+_parsed: dict[Path, tuple[tuple[int, int], dict[str, Definition]]] = {}
 
 
 def _definitions(file: Path) -> dict[str, Definition] | None:
-    """The top-level names a Python source defines (cached by file, size and time)."""
+    """The top-level names a Python source defines (None when it cannot be read)."""
     try:
         st = file.stat()
-        key = (file, st.st_size, st.st_mtime_ns)
-        if key not in _parsed:
+        stamp = (st.st_size, st.st_mtime_ns)
+        cached = _parsed.get(file)
+        if cached is None or cached[0] != stamp:
             tree = pyast.parse(file.read_bytes(), str(file))
-            _parsed[key] = _top_level(tree.body)
+            cached = _parsed[file] = (stamp, _top_level(tree.body))
     except (OSError, SyntaxError, ValueError):
         return None
-    return _parsed[key]
+    return cached[1]
 
 
 def _top_level(body: list[pyast.stmt]) -> dict[str, Definition]:

@@ -29,6 +29,9 @@ from rssm_dsl.syntax.printer import expr_text
 
 MAX_ATOMS = 14
 _FLIP = {">": "<=", ">=": "<", "!=": "=="}
+# the comparisons met in one behaviour's switches: atom text -> (left operand, operator,
+# right operand)
+Parts = dict[str, tuple[str, str, str]]
 _MIRROR = {"<": ">", "<=": ">=", ">": "<", ">=": "<=", "==": "==", "!=": "!="}
 
 
@@ -40,7 +43,7 @@ class F:
     args: tuple[object, ...]
 
 
-def _abstract(e: ast.Expr, conds: dict[str, tuple[str, bool]]) -> F:
+def _abstract(e: ast.Expr, conds: dict[str, tuple[str, bool]], parts: Parts) -> F:
     """`conds` maps a condition name, or the canonical text of a condition's comparison, to
     (the condition whose atom it is, negated)."""
     match e:
@@ -51,11 +54,11 @@ def _abstract(e: ast.Expr, conds: dict[str, tuple[str, bool]]) -> F:
             atom = F("atom", (f"cond:{name}",))
             return F("not", (atom,)) if negated else atom
         case ast.Unary(op="not", operand=x):
-            return F("not", (_abstract(x, conds),))
+            return F("not", (_abstract(x, conds, parts),))
         case ast.Binary(op="and" | "or", left=a, right=b):
-            return F(e.op, (_abstract(a, conds), _abstract(b, conds)))
+            return F(e.op, (_abstract(a, conds, parts), _abstract(b, conds, parts)))
         case ast.Binary(op=op, left=a, right=b) if op in _MIRROR:
-            key, flipped = _key(op, a, b)
+            key, flipped = _key(op, a, b, parts)
             atom = F("atom", (key,))
             if key in conds:
                 name, negated = conds[key]
@@ -65,7 +68,7 @@ def _abstract(e: ast.Expr, conds: dict[str, tuple[str, bool]]) -> F:
     return F("atom", (expr_text(e),))
 
 
-def _key(op: str, a: ast.Expr, b: ast.Expr) -> tuple[str, bool]:
+def _key(op: str, a: ast.Expr, b: ast.Expr, parts: Parts) -> tuple[str, bool]:
     """The atom of the comparison `a op b`, and whether the comparison is its negation: the
     operands in one order (a literal on the right, else by their text; `1 < x` is `x > 1`),
     the operator one of ==, <, <= (`x > 1` is the negation of `x <= 1`)."""
@@ -74,12 +77,9 @@ def _key(op: str, a: ast.Expr, b: ast.Expr) -> tuple[str, bool]:
     if literal_left or (not isinstance(b, ast.Literal) and left > right):
         left, right, op = right, left, _MIRROR[op]
     key = f"{left} {_FLIP.get(op, op)} {right}"
-    _COMPARISONS[key] = (left, _FLIP.get(op, op), right)
+    parts[key] = (left, _FLIP.get(op, op), right)
     return key, op in _FLIP
 
-
-# atom text -> (left operand, operator, right operand), for the atoms _key made
-_COMPARISONS: dict[str, tuple[str, str, str]] = {}
 
 
 def _atoms(f: F, out: set[str]) -> None:
@@ -128,13 +128,14 @@ def _enum_groups(atoms: set[str], enums: Mapping[str, EnumT]
             for (_, enum), g in groups.items()]
 
 
-def _order_groups(atoms: set[str]) -> list[tuple[str | None, str | None, str | None]]:
+def _order_groups(atoms: set[str], parts: Parts
+                  ) -> list[tuple[str | None, str | None, str | None]]:
     """The atoms `A < B`, `A <= B`, `A == B` of one pair of operands, as (lt, le, eq): in a
     total order `A <= B` is `A < B or A == B`, and `A < B` excludes `A == B`."""
     pairs: dict[tuple[str, str], dict[str, str]] = {}
     for atom in atoms:
-        if atom in _COMPARISONS:
-            left, op, right = _COMPARISONS[atom]
+        if atom in parts:
+            left, op, right = parts[atom]
             pairs.setdefault((left, right), {})[op] = atom
     return [(g.get("<"), g.get("<="), g.get("=="))
             for g in pairs.values() if len(g) > 1]
@@ -165,7 +166,7 @@ def _describe(env: dict[str, bool], ended: list[str]) -> str:
     return text + (" and " + " and ".join(data) if data else "")
 
 
-def _condition_keys(b: Behaviour) -> dict[str, tuple[str, bool]]:
+def _condition_keys(b: Behaviour, parts: Parts) -> dict[str, tuple[str, bool]]:
     """So that a switch repeating a condition's comparison is recognised as that condition,
     and a condition whose comparison is another's (or its negation) as that one's atom."""
     keys: dict[str, tuple[str, bool]] = {}
@@ -174,7 +175,7 @@ def _condition_keys(b: Behaviour) -> dict[str, tuple[str, bool]]:
         while isinstance(e, ast.Unary) and e.op == "not":
             e, negated_expr = e.operand, not negated_expr
         if isinstance(e, ast.Binary) and e.op in _MIRROR:
-            key, flipped = _key(e.op, e.left, e.right)
+            key, flipped = _key(e.op, e.left, e.right, parts)
             flipped = flipped != negated_expr
             if key in keys:                      # the atom of an earlier condition
                 name, negated = keys[key]
@@ -202,9 +203,11 @@ def _check_behaviour(ctx: CheckContext, s: Subsystem, b: Behaviour) -> None:
                       b.span, f"add `switch {b.name} -> NEXT when ...` or `switch {b.name} -> "
                       "end otherwise`")
         return
-    conds = _condition_keys(b)
+    parts: Parts = {}
+    conds = _condition_keys(b, parts)
     formulas: list[tuple[Switch, F | None]] = [
-        (sw, None if sw.condition is None else _abstract(sw.condition, conds)) for sw in outgoing
+        (sw, None if sw.condition is None else _abstract(sw.condition, conds, parts))
+        for sw in outgoing
     ]
     atoms: set[str] = {f"cond:{conds[c.name][0]}" for c in b.conditions}
     for _, f in formulas:
@@ -215,7 +218,7 @@ def _check_behaviour(ctx: CheckContext, s: Subsystem, b: Behaviour) -> None:
     order = sorted(atoms)
     enums = {n: t for n, t in ctx.system.types if isinstance(t, EnumT)}
     groups = _enum_groups(atoms, enums)
-    orders = _order_groups(atoms)
+    orders = _order_groups(atoms, parts)
     missing: list[str] = []
     overlaps: dict[tuple[int, int], str] = {}
     for values in itertools.product((False, True), repeat=len(order)):
