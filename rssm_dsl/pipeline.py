@@ -10,7 +10,7 @@ from pathlib import Path
 from typing import TYPE_CHECKING
 
 from rssm_dsl.diagnostics import Diagnostic, DiagnosticBag
-from rssm_dsl.semantics.analyze import analyze
+from rssm_dsl.semantics.analyze import AgentMemo, analyze
 from rssm_dsl.semantics.loader import Loader, Program
 from rssm_dsl.semantics.model import System
 from rssm_dsl.source import Span
@@ -46,19 +46,21 @@ def _no_gc() -> Iterator[None]:
 
 
 def compile_file(path: Path, overrides: dict[Path, str] | None = None,
-                 build: bool = True) -> Compilation:
-    """Compile one root file. Never raises on bad input: problems are diagnostics."""
+                 build: bool = True, memo: AgentMemo | None = None) -> Compilation:
+    """Compile one root file. Never raises on bad input: problems are diagnostics. With
+    `memo` (see semantics.analyze), agents analysed before are reused."""
     with _no_gc():
-        return _compile(path, overrides, build)
+        return _compile(path, overrides, build, memo)
 
 
-def _compile(path: Path, overrides: dict[Path, str] | None, build: bool) -> Compilation:
+def _compile(path: Path, overrides: dict[Path, str] | None, build: bool,
+             memo: AgentMemo | None) -> Compilation:
     bag = DiagnosticBag()
     at = Span(str(path), 1, 1, 1, 1)
     program = Loader(bag, overrides).load_root(path, at)
     system = None
     if not bag.has_errors:
-        system = analyze(program, bag)
+        system = analyze(program, bag, memo)
     hpn = None
     if build and system is not None and not bag.has_errors:
         from rssm_dsl.hpn.build import build_hpn  # not needed by `rssmc check`

@@ -15,7 +15,7 @@ from __future__ import annotations
 import gc
 import logging
 import threading
-from collections.abc import Iterator
+from collections.abc import Callable, Iterator
 from contextlib import contextmanager
 from dataclasses import dataclass, field, replace
 from pathlib import Path
@@ -26,7 +26,7 @@ from rssm_dsl.lsp.index import Occurrence, SymbolIndex, build_index
 from rssm_dsl.lsp.paths import path_of_display
 from rssm_dsl.lsp.positions import LineIndex
 from rssm_dsl.pipeline import compile_file
-from rssm_dsl.semantics.analyze import analyze
+from rssm_dsl.semantics.analyze import AgentMemo, analyze
 from rssm_dsl.semantics.loader import (
     LINE_SEPARATORS,
     Program,
@@ -101,6 +101,10 @@ def _map_index(ix: SymbolIndex, shifts: ShiftMap) -> SymbolIndex:
     return out
 
 
+def _same_span(span: Span) -> Span:
+    return span
+
+
 @dataclass
 class LazyModule:
     """The AST of the text; after an incremental parse, mapped to real spans on first use."""
@@ -113,6 +117,14 @@ class LazyModule:
     @property
     def ready(self) -> bool:
         return self.value is not None or self.stale is None
+
+    def outline_view(self) -> tuple[ast.Module | None, Callable[[Span], Span]]:
+        """The AST and how to map its spans to the text's: the mapped AST when it is built,
+        the stale one and its shifts otherwise (for what needs few of its spans)."""
+        with self.lock:
+            if self.value is not None or self.stale is None or self.shifts is None:
+                return (self.value if self.value is not None else self.stale), _same_span
+            return self.stale, self.shifts.span
 
     def get(self) -> ast.Module | None:
         with self.lock:
@@ -140,6 +152,8 @@ class Analysis:
     system: System | None             # the last good semantic model (maybe of an older text)
     incremental: State | None = None  # for reparsing the next edit alone
     how: str = "full"                 # "full" or "incremental" (for tests and figures)
+    # the outline of this text in JSON, by position encoding, made once (server.outline)
+    outlines: dict[str, str] = field(default_factory=dict, compare=False, repr=False)
 
     @property
     def module(self) -> ast.Module | None:
@@ -247,7 +261,8 @@ def analyze_text(uri: str, path: Path, display: str, text: str, version: int | N
                 return step
         except Exception:
             log.exception("incremental analysis failed; analysing the whole text")
-    comp = compile_file(path, overrides, build=False)
+    memo = state.memo if state is not None else AgentMemo()
+    comp = compile_file(path, overrides, build=False, memo=memo)
     program = comp.program
     mine = [d for d in comp.diagnostics if d.span.file == display]
     syntax = [d for d in mine if d.code in SYNTAX_CODES]
@@ -263,7 +278,8 @@ def analyze_text(uri: str, path: Path, display: str, text: str, version: int | N
     systems = [d for d in root.decls if isinstance(d, ast.SystemDecl)] if root else []
     new_state = None
     if root is not None and not loading and len(systems) == 1:
-        new_state = State(text, root, ShiftMap.identity(display, display), program)
+        new_state = State(text, root, ShiftMap.identity(display, display), program,
+                          memo=memo)
     return Analysis(
         uri, version, path, display, text, lines,
         LazyModule(root if root is not None else (previous.module if previous else None)),
@@ -336,7 +352,7 @@ def _incremental(uri: str, path: Path, display: str, text: str, version: int | N
     bag = DiagnosticBag()
     try:
         with _no_gc():
-            system = analyze(got.program, bag)
+            system = analyze(got.program, bag, got.state.memo)
     except Exception:
         if not got.state.broken:
             raise

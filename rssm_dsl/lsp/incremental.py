@@ -31,6 +31,7 @@ from typing import Any
 from rssm_dsl.diagnostics import Diagnostic, Related
 from rssm_dsl.lsp.index import block_close, block_end
 from rssm_dsl.lsp.positions import count_lines
+from rssm_dsl.semantics.analyze import AgentMemo
 from rssm_dsl.semantics.loader import Program
 from rssm_dsl.source import SourceFile, Span
 from rssm_dsl.syntax import ast
@@ -105,6 +106,8 @@ class State:
     steps: int = 0
     # agents reparsed with syntax errors, and those errors (stale spans)
     broken: tuple[tuple[ast.AgentDecl, tuple[Diagnostic, ...]], ...] = ()
+    # the semantic passes' work on each agent, reused for the agents an edit left alone
+    memo: AgentMemo = dataclasses.field(default_factory=AgentMemo)
 
 
 @dataclass(frozen=True)
@@ -195,8 +198,8 @@ def reparse(state: State, text: str, display: str,
     sources[pseudo] = source
     program = Program(root=module, modules=modules, sources=sources,
                       imports=dict(prog.imports))
-    return Reparsed(State(text, module, new_shifts, program, state.steps + 1, broken),
-                    program)
+    return Reparsed(State(text, module, new_shifts, program, state.steps + 1, broken,
+                          state.memo), program)
 
 
 def _common_ends(old: str, text: str) -> tuple[int, int]:
@@ -221,19 +224,22 @@ def _common_ends(old: str, text: str) -> tuple[int, int]:
 def _edited_agent(sd: ast.SystemDecl, shifts: ShiftMap, old: str, a: int,
                   old_end: int) -> tuple[int, int, int] | None:
     """The agent the edit [a, old_end) of the old text lies in: (its position in the
-    system, the offset of its `agent` keyword, the offset after its `}`), or None."""
-    for k, agent in enumerate(sd.agents):
-        name = shifts.span(agent.name_span)
-        start = _keyword_before(old, "agent", name.offset)
-        if start is None:
-            return None
-        if start >= a:
-            return None
-        end = block_close(old, name.end_offset)
-        if end <= start or old[end - 1] != "}":
-            return None
-        if a > start and old_end <= end - 1:
-            return k, start, end
+    system, the offset of its `agent` keyword, the offset after its `}`), or None.
+
+    The agents are in text order: the candidate is the last one whose name starts before
+    the edit (found by bisection), and only its block is scanned for its `}`."""
+    names = [shifts.span(agent.name_span) for agent in sd.agents]
+    k = bisect.bisect_left([n.offset for n in names], a) - 1
+    if k < 0:
+        return None
+    start = _keyword_before(old, "agent", names[k].offset)
+    if start is None or start >= a:
+        return None
+    end = block_close(old, names[k].end_offset)
+    if end <= start or old[end - 1] != "}":
+        return None
+    if old_end <= end - 1:
+        return k, start, end
     return None
 
 

@@ -25,11 +25,17 @@ def _type_text(t: ast.TypeExpr) -> str:
     return type_text(t)
 
 
+def _same(span: Span) -> Span:
+    return span
+
+
 class _Outline:
-    def __init__(self, lines: LineIndex, encoding: str, file: str) -> None:
+    def __init__(self, lines: LineIndex, encoding: str, file: str,
+                 real: Callable[[Span], Span]) -> None:
         self.lines = lines
         self.encoding = encoding
         self.file = file
+        self.real = real
         self.left = MAX_SYMBOLS
 
     def each(self, items: Iterable[X], fn: Callable[[X], lsp.DocumentSymbol]
@@ -46,8 +52,8 @@ class _Outline:
             detail: str | None = None,
             children: list[lsp.DocumentSymbol] | None = None) -> lsp.DocumentSymbol:
         self.left -= 1
-        rng = self.lines.range(full, self.encoding)
-        sel_rng = self.lines.range(sel, self.encoding)
+        rng = self.lines.range(self.real(full), self.encoding)
+        sel_rng = self.lines.range(self.real(sel), self.encoding)
         # the selection range must be contained in the full range
         if (sel_rng.start.line, sel_rng.start.character) < (rng.start.line, rng.start.character) \
                 or (sel_rng.end.line, sel_rng.end.character) > (rng.end.line, rng.end.character):
@@ -123,9 +129,11 @@ class _Outline:
         raise AssertionError(d)
 
 
-def document_symbols(module: ast.Module | None, lines: LineIndex,
-                     encoding: str) -> list[lsp.DocumentSymbol]:
+def document_symbols(module: ast.Module | None, lines: LineIndex, encoding: str,
+                     real: Callable[[Span], Span] = _same) -> list[lsp.DocumentSymbol]:
+    """The outline of `module`; `real` maps its spans to the text's (an AST whose spans are
+    stale after an incremental analysis is outlined without mapping all of it first)."""
     if module is None:
         return []
-    outline = _Outline(lines, encoding, module.path)
+    outline = _Outline(lines, encoding, module.path, real)
     return outline.each(module.decls, outline.decl)

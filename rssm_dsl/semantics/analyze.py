@@ -2,17 +2,18 @@
 
 from __future__ import annotations
 
-from dataclasses import replace
+import threading
+from dataclasses import dataclass, field, replace
 
-from rssm_dsl.diagnostics import DiagnosticBag, Related
+from rssm_dsl.diagnostics import Diagnostic, DiagnosticBag, Related
 from rssm_dsl.semantics.behaviours import BehaviourPass
 from rssm_dsl.semantics.channels import ChannelPass
 from rssm_dsl.semantics.checks import CHECKS, CheckContext
-from rssm_dsl.semantics.declarations import DeclarationPass
+from rssm_dsl.semantics.declarations import DeclarationPass, Globals
 from rssm_dsl.semantics.loader import Program
-from rssm_dsl.semantics.model import Agent, Buffer, Device, Subsystem, System
+from rssm_dsl.semantics.model import Agent, Behaviour, Buffer, Device, Subsystem, Switch, System
 from rssm_dsl.semantics.properties import check_properties
-from rssm_dsl.semantics.structure import Shell, StructurePass
+from rssm_dsl.semantics.structure import AgentShell, Shell, StructurePass
 from rssm_dsl.syntax import ast
 
 
@@ -23,7 +24,77 @@ def _paired(shell: Shell, paired: dict[str, Buffer]) -> tuple[list[Buffer], list
             [b for b in buffers if b.direction is ast.Direction.OUTPUT])
 
 
-def analyze(program: Program, bag: DiagnosticBag) -> System | None:
+@dataclass(frozen=True)
+class Behaviours:
+    """What the behaviour pass made of one subsystem."""
+
+    behaviours: tuple[Behaviour, ...]
+    switches: tuple[Switch, ...]
+    written: set[str]
+    unchecked: set[str]
+
+
+@dataclass(frozen=True)
+class AgentWork:
+    """What the structure and behaviour passes made of one agent declaration, and what they
+    reported. It depends on nothing but that declaration and the declarations outside
+    systems (types, constants, externs, devices)."""
+
+    decl: ast.AgentDecl
+    shell: AgentShell
+    subsystems: dict[str, Behaviours]       # by the shell's id
+    diagnostics: tuple[Diagnostic, ...]
+
+
+@dataclass
+class AgentMemo:
+    """The work of each agent of the last analysis, reused by the next one for every agent
+    whose declaration is the same AST object while the declarations outside systems are
+    the same objects too. The language server keeps one per document: an edit inside one
+    agent reparses that agent alone (lsp/incremental.py), so every other agent is reused.
+    Analyses in several threads may share one: each reads a snapshot and stores a whole
+    new one."""
+
+    outside: tuple[ast.Decl, ...] = ()
+    agents: dict[int, AgentWork] = field(default_factory=dict)   # by id(decl)
+    lock: threading.Lock = field(default_factory=threading.Lock, repr=False)
+
+    def reusable(self, outside: tuple[ast.Decl, ...]) -> dict[int, AgentWork]:
+        with self.lock:
+            same = len(outside) == len(self.outside) and all(
+                a is b for a, b in zip(outside, self.outside, strict=True))
+            return self.agents if same else {}
+
+    def keep(self, outside: tuple[ast.Decl, ...], works: list[AgentWork]) -> None:
+        with self.lock:
+            self.outside = outside
+            self.agents = {id(w.decl): w for w in works}
+
+
+def _outside_systems(program: Program) -> tuple[ast.Decl, ...]:
+    return tuple(d for m in program.modules for d in m.decls
+                 if not isinstance(d, ast.SystemDecl))
+
+
+def _agent_work(a: ast.AgentDecl, g: Globals, decls: DeclarationPass) -> AgentWork:
+    bag = DiagnosticBag()
+    with decls.reporting_to(bag):
+        shell = StructurePass(bag, g, decls).agent(a)
+    subsystems: dict[str, Behaviours] = {}
+    for s in shell.shells:
+        if not s.device:
+            assert s.decl is not None
+            bp = BehaviourPass(bag, g, s)
+            behaviours, switches = bp.run(s.decl)
+            subsystems[s.id] = Behaviours(behaviours, switches, bp.usage.written, bp.unchecked)
+    return AgentWork(a, shell, subsystems, tuple(bag.items))
+
+
+def analyze(program: Program, bag: DiagnosticBag, memo: AgentMemo | None = None
+            ) -> System | None:
+    """The semantic model of the program (None when it has no single system); every
+    problem goes to `bag`. With `memo`, agents unchanged since the last call are not
+    analysed again."""
     decls = DeclarationPass(bag)
     g = decls.run(program.modules, program.root)
     root = program.root
@@ -40,7 +111,20 @@ def analyze(program: Program, bag: DiagnosticBag) -> System | None:
                       related=(Related(g.systems[0].name_span, "the first system"),))
         return None
     sysdecl = g.systems[0]
-    agent_shells = StructurePass(bag, g, decls).run(sysdecl)
+    outside = _outside_systems(program) if memo is not None else ()
+    reusable = memo.reusable(outside) if memo is not None else {}
+    works: list[AgentWork] = []
+    for decl in StructurePass(bag, g, decls).unique_agents(sysdecl):
+        work = reusable.get(id(decl))
+        if work is None or work.decl is not decl:
+            work = _agent_work(decl, g, decls)
+        for d in work.diagnostics:
+            bag.add(d)
+        works.append(work)
+    if memo is not None:
+        memo.keep(outside, works)
+    agent_shells = [w.shell for w in works]
+    done = {sid: b for w in works for sid, b in w.subsystems.items()}
     channels = ChannelPass(bag, agent_shells).run()
     paired = {b.qualified: b for ch in channels for b in (ch.producer, ch.consumer)}
 
@@ -60,15 +144,14 @@ def analyze(program: Program, bag: DiagnosticBag) -> System | None:
                                       shell.binding_span))
                 continue
             assert shell.decl is not None
-            bp = BehaviourPass(bag, g, shell)
-            behaviours, switches = bp.run(shell.decl)
+            b = done[shell.id]
             sub = Subsystem(a.name, shell.kind, shell.name, shell.span, shell.frequency,
                             tuple(shell.params), tuple(shell.memory), tuple(inputs),
-                            tuple(outputs), behaviours, switches)
+                            tuple(outputs), b.behaviours, b.switches)
             subsystems.append(sub)
             sub_decls[sub.id] = shell.decl
-            written[sub.id] = bp.usage.written
-            unchecked[sub.id] = bp.unchecked
+            written[sub.id] = b.written
+            unchecked[sub.id] = b.unchecked
         agents.append(Agent(a.name, a.span, tuple(subsystems), tuple(devices)))
 
     system = System(sysdecl.name, sysdecl.span, tuple(agents), tuple(channels),

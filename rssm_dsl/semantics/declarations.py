@@ -3,6 +3,8 @@
 from __future__ import annotations
 
 import re
+from collections.abc import Iterator
+from contextlib import contextmanager
 from dataclasses import dataclass, field
 
 from rssm_dsl.diagnostics import DiagnosticBag, Related
@@ -62,6 +64,17 @@ class DeclarationPass:
         self._type_decls: dict[str, ast.RecordDecl | ast.AliasDecl | ast.EnumDecl] = {}
         self._resolving: set[str] = set()
         self._const_scope: dict[str, Symbol] = {}
+
+    @contextmanager
+    def reporting_to(self, bag: DiagnosticBag) -> Iterator[None]:
+        """Report to `bag` meanwhile (what the passes find in one agent, types included,
+        is kept with that agent's work: see analyze.AgentMemo)."""
+        old = self.bag
+        self.bag = bag
+        try:
+            yield
+        finally:
+            self.bag = old
 
     def _declare(self, name: str, span: Span) -> bool:
         if name in self.g.spans:

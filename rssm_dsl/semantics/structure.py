@@ -69,8 +69,9 @@ class StructurePass:
         self.decls = decls
         self.checker = ExprChecker(bag)
 
-    def run(self, system: ast.SystemDecl) -> list[AgentShell]:
-        agents: list[AgentShell] = []
+    def unique_agents(self, system: ast.SystemDecl) -> list[ast.AgentDecl]:
+        """The system's agents, but the second of two with one name (reported)."""
+        agents: list[ast.AgentDecl] = []
         seen: dict[str, Span] = {}
         for a in system.agents:
             if a.name in seen:
@@ -78,10 +79,10 @@ class StructurePass:
                                related=(Related(seen[a.name], "first declared here"),))
                 continue
             seen[a.name] = a.name_span
-            agents.append(self._agent(a))
+            agents.append(a)
         return agents
 
-    def _agent(self, a: ast.AgentDecl) -> AgentShell:
+    def agent(self, a: ast.AgentDecl) -> AgentShell:
         shells: list[Shell] = []
         broken: set[str] = set()
         controls = [s for s in a.subsystems if s.kind is ast.SubsystemKind.CONTROL]

@@ -6,7 +6,9 @@ from __future__ import annotations
 import random
 import re
 from pathlib import Path
+from typing import Any
 
+import pytest
 from hypothesis import given, settings
 from hypothesis import strategies as st
 from lsprotocol import types as lsp
@@ -14,6 +16,7 @@ from lsprotocol import types as lsp
 from rssm_dsl.lsp.analysis import SYNTAX_CODES, Analysis, analyze_text
 from rssm_dsl.lsp.symbols import document_symbols
 from rssm_dsl.semantics.loader import display_path
+from rssm_dsl.syntax import ast
 from tests.lsp.specs import GOOD, MISSING_CASE
 
 _HEAD, _, _REST = GOOD.partition("system lwr4_circle {\n")
@@ -35,7 +38,10 @@ def _diags(a: Analysis) -> list[tuple[str, str, int, int, int, int]]:
 
 
 def _outline(a: Analysis) -> list[lsp.DocumentSymbol]:
-    return document_symbols(a.module, a.lines, "utf-16")
+    """The outline as the server makes it: from the stale AST and its shifts when the
+    mapped AST is not built yet (as after an incremental analysis)."""
+    module, real = a.lazy_module.outline_view()
+    return document_symbols(module, a.lines, "utf-16", real)
 
 
 def _occurrences(a: Analysis) -> set[tuple[str, int, int, str]]:
@@ -148,3 +154,39 @@ def test_an_incremental_analysis_keeps_the_checks_of_the_loader() -> None:
     c = analyze_text("file:///loader", path, shown, t3, 3, {}, b)
     assert _diags(c) == _diags(analyze_text("file:///loader", path, shown, t3, 3, {}, None))
     assert "E011" in [d.code for d in c.diagnostics]
+
+
+def test_the_semantic_passes_run_again_on_the_edited_agent_only(
+        monkeypatch: pytest.MonkeyPatch) -> None:
+    """After an edit inside agent a2, the structure and behaviour passes analyse a2 alone;
+    the other agents' work (and a3's E501) is reused. An edit outside the agents (a
+    constant) makes every agent be analysed again, and its effect reaches them all."""
+    import rssm_dsl.semantics.analyze as analyze_module
+
+    analysed: list[str] = []
+    real = analyze_module._agent_work
+
+    def counting(a: ast.AgentDecl, *args: Any) -> Any:
+        analysed.append(a.name)
+        return real(a, *args)
+
+    monkeypatch.setattr(analyze_module, "_agent_work", counting)
+    path = Path("/tmp/rssm-incremental-test/memo.rssm")
+    shown = display_path(path)
+    text = spec(4).replace("import std.types\n", "import std.types\nconst gain: float = 0.05\n")
+    a = analyze_text("file:///memo", path, shown, text, 1, {}, None)
+    assert sorted(analysed) == ["a1", "a2", "a3", "a4"]
+    analysed.clear()
+    at = text.index("agent a2 {")
+    t2 = text[:at] + text[at:].replace("float = 0.05", "float = gain", 1)
+    b = analyze_text("file:///memo", path, shown, t2, 2, {}, a)
+    assert b.how == "incremental" and analysed == ["a2"]
+    assert _diags(b) == _diags(analyze_text("file:///memo", path, shown, t2, 2, {}, None))
+    assert [d.code for d in b.diagnostics] == ["E501"]
+    analysed.clear()
+    # the constant becomes a bool: a2 now reads a bool where a float is due
+    t3 = t2.replace("const gain: float = 0.05", "const gain: bool = true")
+    c = analyze_text("file:///memo", path, shown, t3, 3, {}, b)
+    assert sorted(analysed) == ["a1", "a2", "a3", "a4"]
+    assert "E201" in [d.code for d in c.diagnostics]
+    assert _diags(c) == _diags(analyze_text("file:///memo", path, shown, t3, 3, {}, None))
