@@ -5,7 +5,11 @@
 - E603 (after a behaviour ends no switch condition may hold): add `switch B -> end
   otherwise` (or to another behaviour);
 - E304 (a buffer with no matching buffer on its peer): declare the missing buffer in the
-  peer subsystem.
+  peer subsystem (not offered when the peer already declares something of that name).
+
+Every fix gives a text that parses and checks no worse than before, and removes the
+diagnostic it is preferred for (tests/lsp/test_actions_property.py applies each to every
+example of examples/diagnostics/ and to mutations of them).
 """
 
 from __future__ import annotations
@@ -25,6 +29,7 @@ from rssm_dsl.semantics.behaviours import (
 )
 from rssm_dsl.source import Span
 from rssm_dsl.syntax import ast
+from rssm_dsl.syntax.printer import type_text
 
 _LETTER = {"control": "c", "effector": "e", "receptor": "r"}
 
@@ -185,10 +190,13 @@ class Fixer:
         else:
             relative = f"{_LETTER[owner.sub.kind.value]}.{owner.sub.name}"
         output = buf.direction is ast.Direction.INPUT
-        start, end = buf.type.span.offset, buf.type.span.end_offset
-        type_text = self.text[start:end] if end > start else "float"
         name = named.group(2) if named else buf.name
-        decl = (f"{'output' if output else 'input'} {name}: {type_text} "
+        taken = {x.name for x in peer.sub.buffers} | {x.name for x in peer.sub.memory} | {
+            x.name for x in peer.sub.params}
+        if name in taken:
+            return []   # another declaration of the peer has the name: no buffer can have it
+        # the type as the printer writes it (its span stops before an array's `]`)
+        decl = (f"{'output' if output else 'input'} {name}: {type_text(buf.type)} "
                 f"{'to' if output else 'from'} {relative}")
         if buf.mode is not None and buf.mode_span is not None:
             decl += f" {buf.mode.value}"

@@ -17,21 +17,32 @@ effector a1.e.lwr; in `to E.lwr.torque`, `lwr` is the device instance and `torqu
 buffer; in `a2.c`, `a2` is the agent and `c` its control subsystem. `new(x)` refers to the
 input buffer x. In a property, `arm.c in release` refers to the agent arm, its control
 subsystem and its behaviour release; `arm.c.waited` to arm, arm.c and its variable waited.
+In `real effector big: Heater(watts = 2000.0)`, `watts` is the device type's parameter.
+
+A record field is referred to by `x.f` (read, or written by `x.f := ...`) where x is of that
+record type, and by `{f: ...}`, a record literal of the type its context expects (the
+declared type of what it initialises or is assigned to, a parameter of an external
+operation, the enclosing literal's field...): the index follows the types of expressions
+as far as records go, as the type checker does.
+
+`links` records the peer of each buffer (what pairing and rename need).
 """
 
 from __future__ import annotations
 
+import logging
 import re
 from collections.abc import Iterator
 from dataclasses import dataclass, field
 from pathlib import Path
 
-from rssm_dsl.lsp.positions import line_end, line_start
+from rssm_dsl.lsp.positions import line_start
 from rssm_dsl.semantics.loader import Program, _candidates, display_path
 from rssm_dsl.semantics.typecheck import BUILTIN_CONSTS, BUILTIN_FUNCTIONS
 from rssm_dsl.source import SourceFile, Span
 from rssm_dsl.syntax import ast
 
+log = logging.getLogger("rssmc.lsp")
 _NAME = re.compile(r"[A-Za-z_][A-Za-z0-9_]*")
 _LETTERS = ("c", "e", "r", "E", "R")
 _KIND_LETTER = {"control": "c", "effector": "e", "receptor": "r"}
@@ -48,6 +59,23 @@ class Definition:
     detail: str           # one line of RSSM text describing it
     container: str | None = None   # key of the enclosing declaration
     renameable: bool = True
+
+
+@dataclass(frozen=True, slots=True)
+class _Rec:
+    """A record type (records are nominal: named by their declaration)."""
+
+    name: str
+
+
+@dataclass(frozen=True, slots=True)
+class _Arr:
+    element: _Ty
+
+
+# What the index knows of a value's type: enough to tell which record a field belongs to
+# (None: not a record, nor an array of them, or unknown).
+_Ty = _Rec | _Arr | None
 
 
 @dataclass(frozen=True, slots=True)
@@ -70,6 +98,9 @@ class SymbolIndex:
     definitions: dict[str, Definition] = field(default_factory=dict)
     occurrences: dict[str, list[Occurrence]] = field(default_factory=dict)  # by file
     scopes: list[tuple[Span, Scope]] = field(default_factory=list)  # subsystem spans
+    # the peer of each buffer that names one: buffer key -> the key of the subsystem or
+    # device instance, or of the buffer (`PEER.BUFFER`)
+    links: dict[str, str] = field(default_factory=dict)
 
     # ------------------------------------------------------------------ queries
     def at(self, file: str, offset: int) -> Occurrence | None:
@@ -110,35 +141,27 @@ def _name_span(source: SourceFile | None, span: Span, name: str, start: int | No
     return span
 
 
+# what block_end steps over: comments and strings whole (an unclosed one to the end of its
+# line or of the text, as the compiler reads it), and the brackets
+_BLOCK_SCAN = re.compile(r'//[^\n\r]*|/\*[\s\S]*?\*/|/\*[\s\S]*'
+                         r'|"(?:[^"\\\n\r]|\\[\s\S])*[\s\S]?|[()\[\]{}]')
+
+
 def block_end(text: str, end: int) -> int:
     """The offset just after the `}` that closes the block whose contents end near `end`:
     the first `}` after `end` that closes no bracket opened after `end` (node spans stop at
     their last child, before closing punctuation). `end` when there is none."""
-    i, n, depth = end, len(text), 0
-    while i < n:
-        ch = text[i]
-        if text.startswith("//", i):
-            i = line_end(text, i)
-            continue
-        if text.startswith("/*", i):
-            j = text.find("*/", i + 2)
-            i = n if j < 0 else j + 2
-            continue
-        if ch == '"':
-            j = i + 1
-            while j < n and text[j] not in '"\n\r':
-                j += 2 if text[j] == "\\" else 1
-            i = j + 1
-            continue
-        if ch in "([{":
+    depth = 0
+    for m in _BLOCK_SCAN.finditer(text, end):
+        ch = m.group()
+        if ch in ("(", "[", "{"):
             depth += 1
-        elif ch in ")]":
+        elif ch in (")", "]"):
             depth = max(0, depth - 1)
         elif ch == "}":
             if depth == 0:
-                return i + 1
+                return m.end()
             depth -= 1
-        i += 1
     return end
 
 
@@ -229,6 +252,14 @@ class IndexBuilder:
         self.index = SymbolIndex()
         self.globals: dict[str, str] = {}           # global name -> key
         self.device_types: dict[str, ast.DeviceDecl] = {}
+        # what the record fields of an expression's value need: declared types by name,
+        # the declared type of each variable's key, and the values of untyped constants
+        self.type_decls: dict[str, ast.RecordDecl | ast.AliasDecl | ast.EnumDecl] = {}
+        self.externs: dict[str, ast.ExternDecl] = {}
+        self.declared: dict[str, ast.TypeExpr] = {}
+        self.untyped: dict[str, ast.Expr] = {}
+        self.local_types: dict[str, _Ty] = {}
+        self._typing: set[str] = set()
 
     def source(self, span: Span) -> SourceFile | None:
         return self.program.sources.get(span.file)
@@ -259,6 +290,7 @@ class IndexBuilder:
             match d:
                 case ast.RecordDecl():
                     key = f"type:{d.name}"
+                    self.type_decls.setdefault(d.name, d)
                     self.define(Definition(key, d.name, "record", d.name_span, d.span,
                                            f"record {d.name}"))
                     for f in d.fields:
@@ -267,10 +299,12 @@ class IndexBuilder:
                                                span, f.span, f"{f.name}: {_type_text(f.type)}",
                                                key))
                 case ast.AliasDecl():
+                    self.type_decls.setdefault(d.name, d)
                     self.define(Definition(f"type:{d.name}", d.name, "type alias", d.name_span,
                                            d.span, f"type {d.name} = {_type_text(d.type)}"))
                 case ast.EnumDecl():
                     key = f"type:{d.name}"
+                    self.type_decls.setdefault(d.name, d)
                     members = ", ".join(m.name for m in d.members)
                     self.define(Definition(key, d.name, "enum", d.name_span, d.span,
                                            f"enum {d.name} {{ {members} }}"))
@@ -282,9 +316,14 @@ class IndexBuilder:
                 case ast.ConstDecl():
                     from rssm_dsl.syntax.printer import expr_text
                     t = f": {_type_text(d.type)}" if d.type is not None else ""
+                    if d.type is not None:
+                        self.declared.setdefault(f"const:{d.name}", d.type)
+                    else:
+                        self.untyped.setdefault(f"const:{d.name}", d.value)
                     self.define(Definition(f"const:{d.name}", d.name, "constant", d.name_span,
                                            d.span, f"const {d.name}{t} = {expr_text(d.value)}"))
                 case ast.ExternDecl():
+                    self.externs.setdefault(d.name, d)
                     params = ", ".join(f"{p.name}: {_type_text(p.type)}" for p in d.params)
                     self.define(Definition(
                         f"extern:{d.name}", d.name, "external operation", d.name_span, d.span,
@@ -297,10 +336,12 @@ class IndexBuilder:
                                            d.name_span, d.span,
                                            f"device {d.kind.value} {d.name}"))
                     for b in d.buffers:
+                        self.declared.setdefault(f"devbuf:{d.name}.{b.name}", b.type)
                         self.define(Definition(f"devbuf:{d.name}.{b.name}", b.name,
                                                f"{b.direction.value} buffer of a device",
                                                b.name_span, b.span, _buffer_detail(b), key))
                     for p in d.params:
+                        self.declared.setdefault(f"devparam:{d.name}.{p.name}", p.type)
                         self.define(Definition(f"devparam:{d.name}.{p.name}", p.name,
                                                "device parameter", p.name_span, p.span,
                                                f"param {p.name}: {_type_text(p.type)}", key))
@@ -331,14 +372,17 @@ class IndexBuilder:
                                        renameable=s.kind is not ast.SubsystemKind.CONTROL
                                        and named))
                 for b in s.buffers:
+                    self.declared.setdefault(f"buf:{skey[4:]}.{b.name}", b.type)
                     self.define(Definition(f"buf:{skey[4:]}.{b.name}", b.name,
                                            f"{b.direction.value} buffer", b.name_span, b.span,
                                            _buffer_detail(b), skey))
                 for mem in s.memory:
+                    self.declared.setdefault(f"mem:{skey[4:]}.{mem.name}", mem.type)
                     self.define(Definition(f"mem:{skey[4:]}.{mem.name}", mem.name, "memory",
                                            mem.name_span, mem.span,
                                            f"memory {mem.name}: {_type_text(mem.type)}", skey))
                 for p in s.params:
+                    self.declared.setdefault(f"param:{skey[4:]}.{p.name}", p.type)
                     self.define(Definition(f"param:{skey[4:]}.{p.name}", p.name, "parameter",
                                            p.name_span, p.span,
                                            f"param {p.name}: {_type_text(p.type)}", skey))
@@ -376,7 +420,7 @@ class IndexBuilder:
                 case ast.ConstDecl():
                     if d.type is not None:
                         self._types(d.type)
-                    self._expr(d.value, {})
+                    self._expr(d.value, {}, self._ty(d.type))
                 case ast.ExternDecl():
                     for p in d.params:
                         self._types(p.type)
@@ -395,10 +439,10 @@ class IndexBuilder:
         for b in d.buffers:
             self._types(b.type)
             if b.init is not None:
-                self._expr(b.init, scope)
+                self._expr(b.init, scope, self._ty(b.type))
         for dp in d.params:
             self._types(dp.type)
-            self._expr(dp.value, scope)
+            self._expr(dp.value, scope, self._ty(dp.type))
 
     def _import(self, imp: ast.Import, m: ast.Module) -> None:
         path = Path(m.path)
@@ -442,7 +486,10 @@ class IndexBuilder:
             if key is not None and key.startswith("type:"):
                 self.use(named.span, key)
 
-    def _expr(self, e: ast.Expr, scope: dict[str, str]) -> None:
+    def _expr(self, e: ast.Expr, scope: dict[str, str], expected: _Ty = None) -> None:
+        """The names of `e` (in `scope`: local name -> key) and its record fields (`expected`:
+        the type its context gives it, which record literals take)."""
+        self._fields(e, scope, expected)
         for x in _exprs(e):
             if isinstance(x, ast.Name):
                 key = scope.get(x.name) or self.globals.get(x.name)
@@ -456,13 +503,185 @@ class IndexBuilder:
                     and x.value.name not in scope:
                 self._member(x, x.value)
 
+    # ------------------------------------------------------------------ record fields
+    def _ty(self, t: ast.TypeExpr | None) -> _Ty:
+        """A declared type, as far as records go (aliases followed)."""
+        arrays = 0
+        seen: set[str] = set()
+        found: _Ty = None
+        while t is not None:
+            if isinstance(t, ast.ArrayType):
+                arrays += 1
+                t = t.element
+                continue
+            if not isinstance(t, ast.NamedType) or t.name in seen:
+                break
+            seen.add(t.name)
+            d = self.type_decls.get(t.name)
+            if isinstance(d, ast.AliasDecl):
+                t = d.type
+                continue
+            if isinstance(d, ast.RecordDecl):
+                found = _Rec(d.name)
+            break
+        if found is None:
+            return None
+        for _ in range(arrays):
+            found = _Arr(found)
+        return found
+
+    def _field_decl(self, record: str, name: str) -> ast.FieldDecl | None:
+        d = self.type_decls.get(record)
+        if not isinstance(d, ast.RecordDecl):
+            return None
+        return next((f for f in d.fields if f.name == name), None)
+
+    def _key_type(self, key: str | None) -> _Ty:
+        """The type of the variable, buffer, parameter, constant or local of a key."""
+        if key is None:
+            return None
+        if key in self.local_types:
+            return self.local_types[key]
+        declared = self.declared.get(key)
+        if declared is not None:
+            return self._ty(declared)
+        value = self.untyped.get(key)
+        if value is None or key in self._typing or len(self._typing) > 32:
+            return None
+        self._typing.add(key)
+        try:
+            return self._type_of(value, {})
+        finally:
+            self._typing.discard(key)
+
+    def _type_of(self, e: ast.Expr, scope: dict[str, str], expected: _Ty = None) -> _Ty:
+        """The type of an expression's value, as far as records go (as the type checker
+        finds it: a record literal takes the type its context expects)."""
+        match e:
+            case ast.Name():
+                return self._key_type(scope.get(e.name) or self.globals.get(e.name))
+            case ast.FieldAccess():
+                base = self._type_of(e.value, scope)
+                f = self._field_decl(base.name, e.field) if isinstance(base, _Rec) else None
+                return self._ty(f.type) if f is not None else None
+            case ast.Index():
+                base = self._type_of(e.value, scope)
+                return base.element if isinstance(base, _Arr) else None
+            case ast.Call():
+                ext = self.externs.get(e.function)
+                if ext is None or e.function in BUILTIN_FUNCTIONS:
+                    return None
+                return self._ty(ext.result)
+            case ast.IfExpr():
+                return (self._type_of(e.then, scope, expected)
+                        or self._type_of(e.otherwise, scope, expected))
+            case ast.ArrayLit():
+                want = expected.element if isinstance(expected, _Arr) else None
+                first = self._type_of(e.items[0], scope, want) if e.items else None
+                return _Arr(first) if first is not None else None
+            case ast.RecordLit():
+                return expected if isinstance(expected, _Rec) else None
+        return None
+
+    def _fields(self, e: ast.Expr, scope: dict[str, str], expected: _Ty) -> None:
+        """The record fields named in `e`: `x.f` (x a record) and `{f: ...}` (a record
+        literal, of the type its context expects)."""
+        try:
+            self._fields_of(e, scope, expected)
+        except RecursionError:   # a pathological nesting: its fields are not indexed
+            log.info("record fields of a deeply nested expression are not indexed")
+
+    def _fields_of(self, e: ast.Expr, scope: dict[str, str], expected: _Ty) -> None:
+        stack: list[tuple[ast.Expr, _Ty]] = [(e, expected)]
+        while stack:
+            x, want = stack.pop()
+            match x:
+                case ast.FieldAccess():
+                    self._field_use(x, self._type_of(x.value, scope))
+                    stack.append((x.value, None))
+                case ast.RecordLit():
+                    stack += self._record_literal(x, want)
+                case ast.IfExpr():
+                    stack += [(x.condition, None), (x.then, want), (x.otherwise, want)]
+                case ast.ArrayLit():
+                    elem = want.element if isinstance(want, _Arr) else None
+                    stack += [(item, elem) for item in x.items]
+                case ast.Call():
+                    ext = None if x.function in BUILTIN_FUNCTIONS else \
+                        self.externs.get(x.function)
+                    params = [p.type for p in ext.params] if ext is not None else []
+                    stack += [(a, self._ty(params[i]) if i < len(params) else None)
+                              for i, a in enumerate(x.args)]
+                case ast.Index():
+                    stack += [(x.value, None), (x.index, None)]
+                case ast.Unary():
+                    stack.append((x.operand, None))
+                case ast.Binary():
+                    stack += [(x.left, None), (x.right, None)]
+                case ast.InBehaviour():
+                    stack.append((x.subject, None))
+
+    def _field_use(self, x: ast.FieldAccess, base: _Ty) -> None:
+        """`x.f`, x of type `base`: a use of the field f of that record."""
+        if isinstance(base, _Rec) and self._field_decl(base.name, x.field) is not None:
+            span = self._field_span(x)
+            if span is not None:
+                self.use(span, f"field:{base.name}.{x.field}")
+
+    def _record_literal(self, x: ast.RecordLit, want: _Ty) -> list[tuple[ast.Expr, _Ty]]:
+        """The fields named by a record literal of type `want`; its values, with the types
+        they are expected to have."""
+        out: list[tuple[ast.Expr, _Ty]] = []
+        start: int | None = None     # the end of the previous field's value
+        for name, v in x.fields:
+            f = self._field_decl(want.name, name) if isinstance(want, _Rec) else None
+            if isinstance(want, _Rec) and f is not None:
+                span = self._record_field_span(v.span, start, name)
+                if span is not None:
+                    self.use(span, f"field:{want.name}.{name}")
+            start = v.span.end_offset
+            out.append((v, self._ty(f.type) if f is not None else None))
+        return out
+
+    def _record_field_span(self, value: Span, start: int | None, name: str) -> Span | None:
+        """The span of the field name written before `value` in a record literal (`name:`
+        just before it; else the last `name:` after `start`, the previous value's end).
+        A literal's span starts at its first value, so the names are found in the text."""
+        src = self.source(value)
+        if src is None:
+            return None
+        text = src.text
+        i = value.offset
+        while i > 0 and text[i - 1] in " \t\r\n":
+            i -= 1
+        if i > 0 and text[i - 1] == ":":
+            i -= 1
+            while i > 0 and text[i - 1] in " \t\r\n":
+                i -= 1
+            if text[max(0, i - len(name)):i] == name and not (
+                    i - len(name) > 0 and (text[i - len(name) - 1].isalnum()
+                                           or text[i - len(name) - 1] == "_")):
+                return src.span(i - len(name), i)
+        lo = start if start is not None else max(0, value.offset - 4096)
+        found: re.Match[str] | None = None
+        pattern = re.compile(r"(?<![A-Za-z0-9_])" + re.escape(name) + r"\s*:")
+        for m in pattern.finditer(text, lo, value.offset):
+            found = m
+        if found is None:
+            return None
+        return src.span(found.start(), found.start() + len(name))
+
     def _member(self, x: ast.FieldAccess, base: ast.Name) -> None:
-        """`Phase.grasp`: the enum type and its member."""
+        """`Phase.grasp`: the enum type and its member (the type alone when it has no such
+        member)."""
         key = self.globals.get(base.name)
         member = f"member:{base.name}.{x.field}"
-        if key is None or not key.startswith("type:") or member not in self.index.definitions:
+        if key is None or not key.startswith("type:") or not isinstance(
+                self.type_decls.get(base.name), ast.EnumDecl):
             return
         self.use(base.span, key)
+        if member not in self.index.definitions:
+            return
         src = self.source(x.span)
         if src is not None and x.span.end_offset - len(x.field) >= base.span.end_offset:
             self.use(src.span(x.span.end_offset - len(x.field), x.span.end_offset), member)
@@ -471,12 +690,16 @@ class IndexBuilder:
         """A property's expression: `AGENT.SUB` names a subsystem, `AGENT.SUB.NAME` one of
         its variables, `AGENT.SUB in BEH` one of its behaviours; other names are constants."""
         agents = {a.name: a for a in sd.agents}
+        # the names followed by a field: an agent's there (AGENT.SUB...), else a constant's
+        # or an enum type's (as the property checker reads them)
+        roots = {id(x.value) for x in _exprs(e)
+                 if isinstance(x, ast.FieldAccess) and isinstance(x.value, ast.Name)}
         for x in _exprs(e):
             if isinstance(x, ast.Name):
-                key = self.globals.get(x.name)
-                if key is not None and key.startswith("const:") and x.name not in agents:
-                    self.use(x.span, key)
+                self._property_name(x, x.name in agents and id(x) in roots)
                 continue
+            if isinstance(x, ast.FieldAccess):
+                self._property_field(sd, agents, x)
             if isinstance(x, ast.InBehaviour):
                 s = self._property_subsystem(sd, agents, x.subject)
                 if s is not None:
@@ -505,6 +728,45 @@ class IndexBuilder:
                     self.use(x.value.span, f"agent:{system_id(sd)}/{s[0]}")
                     self.use(span, subsystem_key(system_id(sd), s[0], s[1]))
 
+    def _property_name(self, x: ast.Name, agent: bool) -> None:
+        """A name in a property: a constant's, unless it is an agent's (`agent`)."""
+        key = self.globals.get(x.name)
+        if key is not None and key.startswith("const:") and not agent:
+            self.use(x.span, key)
+
+    def _property_field(self, sd: ast.SystemDecl, agents: dict[str, ast.AgentDecl],
+                        x: ast.FieldAccess) -> None:
+        """`Phase.idle` (an enum member) or `VALUE.f` (a record field) in a property."""
+        if isinstance(x.value, ast.Name) and x.value.name not in agents:
+            self._member(x, x.value)
+            return
+        self._field_use(x, self._property_type(sd, agents, x.value))
+
+    def _property_type(self, sd: ast.SystemDecl, agents: dict[str, ast.AgentDecl],
+                       e: ast.Expr) -> _Ty:
+        """The type of a value in a property (AGENT.SUB.VAR, a constant, their fields)."""
+        match e:
+            case ast.Name():
+                return None if e.name in agents else self._key_type(self.globals.get(e.name))
+            case ast.FieldAccess():
+                s = self._property_subsystem(sd, agents, e.value)
+                if s is not None:
+                    base = subsystem_key(system_id(sd), s[0], s[1])[4:]
+                    for prefix in ("param", "mem", "buf"):
+                        if f"{prefix}:{base}.{e.field}" in self.declared:
+                            return self._key_type(f"{prefix}:{base}.{e.field}")
+                    return None
+                rec = self._property_type(sd, agents, e.value)
+                f = self._field_decl(rec.name, e.field) if isinstance(rec, _Rec) else None
+                return self._ty(f.type) if f is not None else None
+            case ast.Index():
+                arr = self._property_type(sd, agents, e.value)
+                return arr.element if isinstance(arr, _Arr) else None
+            case ast.IfExpr():
+                return (self._property_type(sd, agents, e.then)
+                        or self._property_type(sd, agents, e.otherwise))
+        return None
+
     def _property_subsystem(self, sd: ast.SystemDecl, agents: dict[str, ast.AgentDecl],
                             e: ast.Expr) -> tuple[str, ast.SubsystemDecl] | None:
         """The subsystem `AGENT.SUB` names in a property: (agent name, its declaration)."""
@@ -531,8 +793,19 @@ class IndexBuilder:
 
     def _agent(self, sd: ast.SystemDecl, a: ast.AgentDecl, src: SourceFile | None) -> None:
         for inst in a.devices:
-            if inst.device in self.device_types:
-                self.use(inst.device_span, f"device:{inst.device}")
+            decl = self.device_types.get(inst.device)
+            if decl is None:
+                for arg in inst.args:
+                    self._expr(arg.value, {})
+                continue
+            self.use(inst.device_span, f"device:{inst.device}")
+            # `(k = VALUE)`: the device type's parameter k (VALUE sees the type's parameters)
+            params = {p.name: f"devparam:{decl.name}.{p.name}" for p in decl.params}
+            for arg in inst.args:
+                key = params.get(arg.name)
+                if key is not None:
+                    self.use(arg.name_span, key)
+                self._expr(arg.value, params, self._key_type(key))
         for s in a.subsystems:
             self._subsystem(sd, a, s)
 
@@ -563,17 +836,20 @@ class IndexBuilder:
         the peers of its buffers."""
         for p in s.params:
             self._types(p.type)
-            self._expr(p.value, names)
+            self._expr(p.value, names, self._ty(p.type))
         for mem in s.memory:
             self._types(mem.type)
             if mem.init is not None:
-                self._expr(mem.init, names)
+                self._expr(mem.init, names, self._ty(mem.type))
         for b in s.buffers:
             self._types(b.type)
             if b.init is not None:
-                self._expr(b.init, names)
+                self._expr(b.init, names, self._ty(b.type))
             if b.peer is not None:
-                self._peer(sd, a, b.peer)
+                link = self._peer(sd, a, b.peer)
+                if link is not None:
+                    skey = subsystem_key(system_id(sd), a.name, s)
+                    self.index.links.setdefault(f"buf:{skey[4:]}.{b.name}", link)
 
     def _switches(self, s: ast.SubsystemDecl, base: str, names: dict[str, str]) -> None:
         """The behaviours named by `initial` and the switches, and the switch conditions."""
@@ -587,7 +863,12 @@ class IndexBuilder:
             if sw.target in behaviours:
                 self.use(sw.target_span, behaviours[sw.target])
             if sw.condition is not None:
-                scope = dict(names)
+                # a condition of another behaviour is out of scope (E608), but it is the one
+                # the name refers to when nothing else has it
+                scope = {c.name: f"cond:{base}.{bd.name}.{c.name}" for bd in reversed(s.behaviours)
+                         for c in reversed(bd.conditions)
+                         if not self.globals.get(c.name, "").startswith(("const:", "type:"))}
+                scope.update(names)
                 source = next((bd for bd in s.behaviours if bd.name == sw.source), None)
                 if source is not None:
                     for c in source.conditions:
@@ -595,6 +876,7 @@ class IndexBuilder:
                 self._expr(sw.condition, scope)
 
     def _behaviour(self, bd: ast.BehaviourDecl, base: str, names: dict[str, str]) -> None:
+        bkey = f"beh:{base}.{bd.name}"
         for u in bd.updates:
             if u.target in names and names[u.target].startswith("buf:"):
                 self.use(u.target_span, names[u.target])
@@ -603,7 +885,7 @@ class IndexBuilder:
                     self._expr(case.condition, names)
                 scope = dict(names)
                 for st in case.body:
-                    self._stmt(st, scope)
+                    self._stmt(st, scope, bkey)
         for c in bd.conditions:
             self._expr(c.expr, names)
         for arr in (*bd.send, *bd.receive):
@@ -611,28 +893,39 @@ class IndexBuilder:
                 if leaf.name in names and names[leaf.name].startswith("buf:"):
                     self.use(leaf.span, names[leaf.name])
 
-    def _stmt(self, st: ast.Stmt, scope: dict[str, str]) -> None:
+    def _stmt(self, st: ast.Stmt, scope: dict[str, str], container: str | None = None) -> None:
+        """A statement of a behaviour (`container`, the key of the local values it
+        declares)."""
         match st:
             case ast.Assign():
                 self._expr(st.target, scope)
-                self._expr(st.value, scope)
+                self._expr(st.value, scope, self._type_of(st.target, scope))
             case ast.Let():
                 self._expr(st.value, scope)
                 src = self.source(st.span)
-                span = _name_span(src, st.span, st.name, st.span.offset + len("let"))
+                span = _name_span(src, st.span, st.name)   # (the span starts at the name)
                 key = f"local:{span.file}:{span.offset}"
                 self.define(Definition(key, st.name, "local value", span, st.span,
-                                       f"let {st.name}"))
+                                       f"let {st.name}", container))
+                self.local_types[key] = self._type_of(st.value, scope)
                 scope[st.name] = key
 
-    def _peer(self, sd: ast.SystemDecl, a: ast.AgentDecl, peer: ast.PeerRef) -> None:
+    def _device_letter(self, d: ast.DeviceInstance) -> str:
+        """E or R: what the device type is (declared as the other kind it is still that:
+        E308), or what the instance says when the type is unknown."""
+        decl = self.device_types.get(d.device)
+        return _DEVICE_LETTER[(decl.kind if decl is not None else d.kind).value]
+
+    def _peer(self, sd: ast.SystemDecl, a: ast.AgentDecl, peer: ast.PeerRef) -> str | None:
+        """The uses in a peer reference; the key of what it names (a subsystem, a device
+        instance, or the buffer of `PEER.BUFFER`)."""
         src = self.source(peer.span)
         if src is None:
-            return
+            return None
         spans = [src.span(m.start(), m.end()) for m in
                  _NAME.finditer(src.text, peer.span.offset, peer.span.end_offset)]
         if len(spans) != len(peer.parts):
-            return
+            return None
         parts = list(zip(peer.parts, spans, strict=True))
         agents = {x.name: x for x in sd.agents}
         agent = a
@@ -642,14 +935,14 @@ class IndexBuilder:
             parts = parts[1:]
         letter, letter_span = parts[0]
         if letter not in _LETTERS:
-            return
+            return None
         target: str | None = None
         rest = parts[1:]
         if letter == "c":
             control = next((s for s in agent.subsystems
                             if s.kind is ast.SubsystemKind.CONTROL), None)
             if control is None:
-                return
+                return None
             target = subsystem_key(system_id(sd), agent.name, control)
             self.use(letter_span, target)
         elif rest:
@@ -657,27 +950,30 @@ class IndexBuilder:
             rest = rest[1:]
             if letter in ("E", "R"):
                 inst = next((d for d in agent.devices if d.name == name
-                             and _DEVICE_LETTER[d.kind.value] == letter), None)
+                             and self._device_letter(d) == letter), None)
                 if inst is None:
-                    return
+                    return None
                 target = instance_key(system_id(sd), agent.name, inst)
                 self.use(name_span, target)
                 if rest and inst.device in self.device_types:
                     bkey = f"devbuf:{inst.device}.{rest[0][0]}"
                     if bkey in self.index.definitions:
                         self.use(rest[0][1], bkey)
-                return
+                        return bkey
+                return target
             sub = next((s for s in agent.subsystems if s.name == name
                         and s.kind is not ast.SubsystemKind.CONTROL
                         and _KIND_LETTER[s.kind.value] == letter), None)
             if sub is None:
-                return
+                return None
             target = subsystem_key(system_id(sd), agent.name, sub)
             self.use(name_span, target)
         if target is not None and rest:
             bkey = f"buf:{target[4:]}.{rest[0][0]}"
             if bkey in self.index.definitions:
                 self.use(rest[0][1], bkey)
+                return bkey
+        return target
 
 
 def build_index(program: Program) -> SymbolIndex:
