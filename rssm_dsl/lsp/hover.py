@@ -8,6 +8,7 @@ from collections.abc import Callable
 
 from rssm_dsl.hpn import names as N
 from rssm_dsl.lsp.index import Definition
+from rssm_dsl.lsp.scope import Env
 from rssm_dsl.semantics.behaviours import combination_text
 from rssm_dsl.semantics.model import Agent, Buffer, Channel, Device, Subsystem, System
 from rssm_dsl.semantics.types import EnumT, RecordT, Type
@@ -22,6 +23,7 @@ def _code(text: str) -> str:
 
 
 def _type(t: Type) -> str:
+    """A type, written out: a record with its fields, an enum with its members."""
     if isinstance(t, RecordT):
         fields = ", ".join(f"{n}: {ft}" for n, ft in t.fields)
         return f"`{t.name}` = record {{{fields}}}"
@@ -150,25 +152,82 @@ def _update(m: _Model, s: Subsystem, behaviour: str, target: str) -> list[str]:
 
 
 def hover_text(d: Definition, system: System | None,
-               update: tuple[str, str] | None = None) -> str:
+               update: tuple[str, str] | None = None, env: Env | None = None,
+               local: Type | None = None) -> str:
     """Markdown for a definition; `update` = (behaviour, target) when the cursor is on the
-    target of an `update`."""
+    target of an `update`. The program-wide declarations (types, constants, external
+    operations, fields) get their types from `env` (the declaration pass of the program the
+    cursor is in: a library module has no system), or from the system; `local` is the type
+    of a `let` value."""
     head = f"**{d.kind}** `{d.name}`"
     body = [head, _code(d.detail)]
+    prefix, _, rest = d.key.partition(":")
+    if prefix in _GLOBAL:
+        return "\n\n".join(body + _GLOBAL[prefix](d, system, env or Env()))
+    if prefix == "local" and local is not None:
+        return "\n\n".join([*body, f"type {_type(local)}"])
     if system is None:
         return "\n\n".join(body)
-    prefix, _, rest = d.key.partition(":")
     _file, _, scoped = rest.partition("|")
     sysname, _, base = scoped.partition("/")
-    if prefix == "type":
-        t = dict(system.types).get(d.name)
-        return "\n\n".join(body + ([f"type {_type(t)}"] if t is not None else []))
-    if prefix == "extern":
-        ext = next((e for e in system.externs if e.name == d.name), None)
-        return "\n\n".join(body + ([f"bound to `{ext.binding}`"] if ext is not None else []))
     if prefix not in _IN_SYSTEM or sysname != system.name:
         return "\n\n".join(body)
     return "\n\n".join(body + _IN_SYSTEM[prefix](_Model(system), prefix, base, update))
+
+
+def _named_type(name: str, system: System | None, env: Env) -> Type | None:
+    t = env.types.get(name)
+    if t is None and system is not None:
+        t = dict(system.types).get(name)
+    return t
+
+
+def _type_lines(d: Definition, system: System | None, env: Env) -> list[str]:
+    t = _named_type(d.name, system, env)
+    return [f"type {_type(t)}"] if t is not None else []
+
+
+def _const_lines(d: Definition, system: System | None, env: Env) -> list[str]:
+    t = env.const_type(d.name)
+    if t is None and system is not None:
+        t = next((c.type for c in system.consts if c.name == d.name), None)
+    return [f"type {_type(t)}"] if t is not None else []
+
+
+def _extern_lines(d: Definition, system: System | None, env: Env) -> list[str]:
+    ext = env.externs.get(d.name)
+    if ext is None and system is not None:
+        ext = next((e for e in system.externs if e.name == d.name), None)
+    if ext is None:
+        return []
+    params = ", ".join(f"{n}: {t}" for n, t in ext.params)
+    return [f"({params}) -> {_type(ext.result)}", f"bound to `{ext.binding}`"]
+
+
+def _field_lines(d: Definition, system: System | None, env: Env) -> list[str]:
+    record, _, name = d.key.partition(":")[2].partition(".")
+    t = _named_type(record, system, env)
+    ft = t.field(name) if isinstance(t, RecordT) else None
+    return [f"field of record `{record}`"] + ([f"type {_type(ft)}"] if ft is not None else [])
+
+
+# the program-wide definitions (key prefix -> the lines about them)
+_GLOBAL: dict[str, Callable[[Definition, System | None, Env], list[str]]] = {
+    "type": _type_lines, "const": _const_lines, "extern": _extern_lines,
+    "field": _field_lines,
+}
+
+
+def field_hover(d: Definition | None, record: RecordT, name: str) -> str:
+    """Hover on the field name of `x.field`, x a record (as on the field's declaration)."""
+    ft = record.field(name)
+    lines = [f"**field** `{name}`"]
+    if d is not None:
+        lines.append(_code(d.detail))
+    lines.append(f"field of record `{record.name}`")
+    if ft is not None:
+        lines.append(f"type {_type(ft)}")
+    return "\n\n".join(lines)
 
 
 _Update = tuple[str, str] | None
