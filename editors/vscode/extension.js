@@ -26,9 +26,8 @@ async function activate(context) {
       { scheme: "file", language: "rssm" },
       { scheme: "untitled", language: "rssm" },
     ],
-    synchronize: {
-      fileEvents: vscode.workspace.createFileSystemWatcher("**/*.rssm"),
-    },
+    // no `synchronize.fileEvents`: the server registers its own watcher (.rssm and .py
+    // files) through client/registerCapability, which the language client supports
   };
   client = new LanguageClient("rssm", "RSSM language server", serverOptions(), clientOptions);
   context.subscriptions.push(

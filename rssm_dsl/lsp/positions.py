@@ -169,29 +169,42 @@ class LineIndex:
         length = self.ends[n] - self.starts[n]
         return self.starts[n] + self._table(n, encoding).column(pos.character, length)
 
-    def position(self, offset: int, encoding: str) -> lsp.Position:
+    def spot(self, offset: int, encoding: str) -> tuple[int, int]:
+        """The (line, character) of a code-point offset, clamped into the text."""
         offset = max(0, min(offset, len(self.text)))
         n = bisect.bisect_right(self.starts, offset) - 1
         col = min(offset, self.ends[n]) - self.starts[n]
-        return lsp.Position(line=n, character=self._table(n, encoding).units(col))
+        return n, self._table(n, encoding).units(col)
+
+    def position(self, offset: int, encoding: str) -> lsp.Position:
+        line, character = self.spot(offset, encoding)
+        return lsp.Position(line=line, character=character)
+
+    def _point(self, line: int, column: int, encoding: str) -> tuple[int, int]:
+        n = max(0, min(line - 1, len(self.starts) - 1))
+        col = max(0, min(column - 1, self.ends[n] - self.starts[n]))
+        return n, self._table(n, encoding).units(col)
 
     def point(self, line: int, column: int, encoding: str) -> lsp.Position:
         """An LSP position from a compiler (1-based line, 1-based code-point column)."""
-        n = max(0, min(line - 1, len(self.starts) - 1))
-        col = max(0, min(column - 1, self.ends[n] - self.starts[n]))
-        return lsp.Position(line=n, character=self._table(n, encoding).units(col))
+        n, character = self._point(line, column, encoding)
+        return lsp.Position(line=n, character=character)
 
-    def range(self, span: Span, encoding: str) -> lsp.Range:
+    def ends_of(self, span: Span, encoding: str) -> tuple[tuple[int, int], tuple[int, int]]:
+        """The (line, character) where a span starts and ends."""
         if span.offset == 0 and span.end_offset == 0 and (span.line, span.column) != (1, 1):
             # a span made without offsets: its line and column are all there is
-            start = self.point(span.line, span.column, encoding)
-            end = self.point(span.end_line, span.end_column, encoding)
+            start = self._point(span.line, span.column, encoding)
+            end = self._point(span.end_line, span.end_column, encoding)
         else:
-            start = self.position(span.offset + self.bom, encoding)
-            end = self.position(max(span.offset, span.end_offset) + self.bom, encoding)
-        if (end.line, end.character) < (start.line, start.character):
-            end = start
-        return lsp.Range(start=start, end=end)
+            start = self.spot(span.offset + self.bom, encoding)
+            end = self.spot(max(span.offset, span.end_offset) + self.bom, encoding)
+        return start, max(start, end)
+
+    def range(self, span: Span, encoding: str) -> lsp.Range:
+        (l0, c0), (l1, c1) = self.ends_of(span, encoding)
+        return lsp.Range(start=lsp.Position(line=l0, character=c0),
+                         end=lsp.Position(line=l1, character=c1))
 
     def whole(self, encoding: str) -> lsp.Range:
         """The range of the whole text."""

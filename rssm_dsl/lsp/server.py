@@ -23,6 +23,8 @@ from __future__ import annotations
 
 import asyncio
 import contextlib
+import inspect
+import json
 import logging
 import os
 import re
@@ -65,7 +67,7 @@ from rssm_dsl.lsp.index import (
 from rssm_dsl.lsp.jobs import Job, run_job
 from rssm_dsl.lsp.paths import is_stdlib, path_of_display, path_of_uri, uri_of_path
 from rssm_dsl.lsp.positions import UTF16, LineIndex
-from rssm_dsl.lsp.symbols import document_symbols
+from rssm_dsl.lsp.symbols import outline_values
 from rssm_dsl.semantics.loader import display_path
 from rssm_dsl.source import Span
 from rssm_dsl.syntax import ast
@@ -73,6 +75,7 @@ from rssm_dsl.syntax.format import FormatterBug, format_text, keywords
 
 log = logging.getLogger("rssmc.lsp")
 
+WATCHED_GLOBS = ("**/*.rssm", "**/*.py")
 DEBOUNCE_SECONDS = float(os.environ.get("RSSMC_LSP_DEBOUNCE_MS", "10")) / 1000
 # How long a request waits for the analysis of the text it was made on.
 WAIT_SECONDS = 1.0
@@ -99,6 +102,10 @@ def _valid_id(x: object) -> bool:
     return isinstance(x, int | str) and not isinstance(x, bool)
 
 
+class RawJson(str):
+    """A result already in JSON (sent as it is, not converted again)."""
+
+
 class RssmProtocol(LanguageServerProtocol):
     """Answers a request whose params do not fit its method with an error carrying the
     request's id (pygls would only log it), and enforces the LSP lifecycle."""
@@ -107,6 +114,23 @@ class RssmProtocol(LanguageServerProtocol):
         super().__init__(*args, **kwargs)
         self.initialize_seen = False
         self.shutdown_seen = False
+        self._writes: set[asyncio.Future[Any]] = set()
+
+    def _send_response(self, msg_id: Any, result: Any | None = None,
+                       error: Any | None = None) -> None:
+        if error is None and isinstance(result, RawJson):
+            self._result_types.pop(msg_id, None)
+            body = f'{{"id": {json.dumps(msg_id)}, "jsonrpc": "2.0", "result": {result}}}'
+            if self.writer is not None:
+                header = (f"Content-Length: {len(body.encode())}\r\n"
+                          f"Content-Type: {self.CONTENT_TYPE}; charset={self.CHARSET}\r\n\r\n")
+                res = self.writer.write((header + body).encode())
+                if inspect.isawaitable(res):   # an async writer (not over stdio)
+                    task = asyncio.ensure_future(res)
+                    self._writes.add(task)
+                    task.add_done_callback(self._writes.discard)
+            return
+        super()._send_response(msg_id, result, error)
 
     def structure_message(self, data: dict[str, Any]) -> Any:
         try:
@@ -192,6 +216,7 @@ class RssmServer(LanguageServer):
         self.jobs: dict[str, Job[Analysis]] = {}     # the running analysis of each document
         self.waiters: dict[str, list[asyncio.Future[None]]] = {}
         self.workspace_cache: dict[Path, tuple[float, SymbolIndex]] = {}
+        self.warming: dict[str, Job[object]] = {}    # building the index of an analysis
 
     @property
     def rssm_protocol(self) -> RssmProtocol:
@@ -257,6 +282,7 @@ class RssmServer(LanguageServer):
 
     # ------------------------------------------------------------------ analysis
     def schedule(self, uri: str, delay: float) -> None:
+        self._cool(uri)
         timer = self.timers.pop(uri, None)
         if timer is not None:
             timer.cancel()
@@ -286,6 +312,8 @@ class RssmServer(LanguageServer):
             job.cancel()
 
     def stop_all(self) -> None:
+        for uri in list(self.warming):
+            self._cool(uri)
         for timer in self.timers.values():
             timer.cancel()
         self.timers.clear()
@@ -312,11 +340,36 @@ class RssmServer(LanguageServer):
         if got[1] == analysis.version:
             self.publish(analysis)
             self._wake(uri)
+            self._warm(uri, analysis)
         if got[1] != analysis.version:
             if uri not in self.timers and uri not in self.jobs:
                 self.schedule(uri, 0)
         elif old is None or old.text != analysis.text:
             self._dependents(analysis)
+
+    def _warm(self, uri: str, a: Analysis) -> None:
+        """Build the AST with real spans and the symbol index of a published analysis while
+        the editor is idle, so that hover, completion and the outline find them ready (an
+        edit stops it: the next analysis makes them stale)."""
+        if a.lazy_module.ready and a.lazy_index.ready:
+            return
+        self._cool(uri)
+
+        encoding = self.encoding
+
+        def build() -> object:
+            outline(a, encoding)
+            return a.lazy_module.get(), a.lazy_index.get()
+
+        job: Job[object] = Job(build, asyncio.get_running_loop(), "rssm-warm")
+        self.warming[uri] = job
+        job.future.add_done_callback(
+            lambda f: self.warming.pop(uri, None) if self.warming.get(uri) is job else None)
+
+    def _cool(self, uri: str) -> None:
+        job = self.warming.pop(uri, None)
+        if job is not None:
+            job.cancel()
 
     def _failed(self, uri: str, e: BaseException) -> None:
         log.error("analysis of %s failed", uri, exc_info=e)
@@ -334,6 +387,23 @@ class RssmServer(LanguageServer):
         for uri, a in list(self.analyses.items()):
             if uri != changed.uri and a.program is not None \
                     and changed.display in a.program.sources:
+                self.schedule(uri, DEBOUNCE_SECONDS)
+
+    def files_changed(self, changes: list[tuple[Path, lsp.FileChangeType]]) -> None:
+        """Files changed on disk (the editor's file watcher): the open documents that read
+        one of them are analysed again, after the usual debounce. A file created or deleted,
+        or a Python module changed, may change what any import or extern binding resolves
+        to: then every open document is."""
+        changed: set[str] = set()
+        everything = False
+        for path, kind in changes:
+            resolved = path.resolve()
+            self.workspace_cache.pop(resolved, None)
+            changed.add(display_path(resolved))
+            if resolved.suffix != ".rssm" or kind is not lsp.FileChangeType.Changed:
+                everything = True
+        for uri, a in list(self.analyses.items()):
+            if everything or a.program is None or not changed.isdisjoint(a.program.sources):
                 self.schedule(uri, DEBOUNCE_SECONDS)
 
     def _wake(self, uri: str) -> None:
@@ -477,6 +547,26 @@ def initialize(ls: RssmServer, params: lsp.InitializeParams) -> None:
     use_lsp_lines(ls.workspace)
 
 
+@server.feature(lsp.INITIALIZED)
+def initialized(ls: RssmServer, params: lsp.InitializedParams) -> None:
+    """Ask the editor to tell which .rssm and .py files change on disk (imported specs and
+    the Python modules of extern bindings), if it can be asked; VS Code's extension says so
+    in its own configuration."""
+    workspace = ls.client_capabilities.workspace
+    watched = workspace.did_change_watched_files if workspace is not None else None
+    if watched is None or not watched.dynamic_registration:
+        return
+    ls.client_register_capability(lsp.RegistrationParams(registrations=[lsp.Registration(
+        id="rssmc-watched-files", method=lsp.WORKSPACE_DID_CHANGE_WATCHED_FILES,
+        register_options=lsp.DidChangeWatchedFilesRegistrationOptions(watchers=[
+            lsp.FileSystemWatcher(glob_pattern=glob) for glob in WATCHED_GLOBS]))]))
+
+
+@server.feature(lsp.WORKSPACE_DID_CHANGE_WATCHED_FILES)
+def did_change_watched_files(ls: RssmServer, params: lsp.DidChangeWatchedFilesParams) -> None:
+    ls.files_changed([(path_of_uri(c.uri), c.type) for c in params.changes])
+
+
 @server.feature(lsp.SHUTDOWN)
 def shutdown(ls: RssmServer, *args: Any) -> None:
     ls.stop_all()
@@ -547,19 +637,33 @@ async def hover(ls: RssmServer, params: lsp.HoverParams) -> lsp.Hover | None:
     a = await ls.indexed(params.text_document.uri)
     if a is None or not a.analyzable:
         return None
+    from rssm_dsl.lsp.hover import field_hover
+    from rssm_dsl.lsp.scope import env_of, field_at, field_span, local_type
+
     offset = a.lines.offset(params.position, ls.encoding)
     text = _update_hover(a, offset)
     occ = a.index.at(a.display, offset)
+    env = env_of(a.program)
+    rng: lsp.Range | None = None
     if text is None and occ is not None:
         d = a.index.definitions.get(occ.key)
         if d is not None:
-            text = hover_text(d, a.system)
+            local = local_type(env, a.module, d.name, d.full.offset) \
+                if d.key.startswith("local:") and a.module is not None else None
+            text = hover_text(d, a.system, env=env, local=local)
             rng = a.lines.range(occ.span, ls.encoding)
-            return lsp.Hover(contents=lsp.MarkupContent(kind=lsp.MarkupKind.Markdown,
-                                                        value=text), range=rng)
+    elif text is None and a.module is not None:     # `x.field`, x a record
+        found = field_at(env, a.module, offset)
+        if found is not None:
+            x, record = found
+            text = field_hover(a.index.definitions.get(f"field:{record.name}.{x.field}"),
+                               record, x.field)
+            start, end = field_span(x)
+            rng = a.lines.range(Span(a.display, 1, 1, 1, 1, start, end), ls.encoding)
     if text is None:
         return None
-    return lsp.Hover(contents=lsp.MarkupContent(kind=lsp.MarkupKind.Markdown, value=text))
+    return lsp.Hover(contents=lsp.MarkupContent(kind=lsp.MarkupKind.Markdown, value=text),
+                     range=rng)
 
 
 def _update_hover(a: Analysis, offset: int) -> str | None:
@@ -588,10 +692,15 @@ async def definition(ls: RssmServer, params: lsp.DefinitionParams) -> list[lsp.L
     a = await ls.indexed(params.text_document.uri)
     if a is None or not a.analyzable:
         return None
+    from rssm_dsl.lsp.scope import env_of, field_at
+
     occ = ls.occurrence(a, params.position)
-    if occ is None:
-        return None
-    d = a.index.definitions.get(occ.key)
+    key = occ.key if occ is not None else None
+    if key is None and a.module is not None:    # `x.field`, x a record
+        found = field_at(env_of(a.program), a.module,
+                         a.lines.offset(params.position, ls.encoding))
+        key = f"field:{found[1].name}.{found[0].field}" if found is not None else None
+    d = a.index.definitions.get(key) if key is not None else None
     if d is None:
         return None
     loc = ls.location(d.span, a)
@@ -603,28 +712,61 @@ async def references(ls: RssmServer, params: lsp.ReferenceParams) -> list[lsp.Lo
     a = await ls.indexed(params.text_document.uri)
     if a is None or not a.analyzable:
         return None
+    from rssm_dsl.lsp.scope import env_of, field_at, field_uses
+
     occ = ls.occurrence(a, params.position)
-    if occ is None:
+    key = occ.key if occ is not None else None
+    if key is None and a.module is not None:    # `x.field`, x a record
+        found = field_at(env_of(a.program), a.module,
+                         a.lines.offset(params.position, ls.encoding))
+        key = f"field:{found[1].name}.{found[0].field}" if found is not None else None
+    if key is None:
         return None
     include = params.context.include_declaration
     out: list[lsp.Location] = []
-    for o in await ls.all_references(occ.key):
-        if o.definition and not include:
+    indexed = await ls.all_references(key)
+    spans = [o.span for o in indexed if include or not o.definition]
+    if key.startswith("field:") and all(o.definition for o in indexed):
+        # no use of the field in the indexes: its uses `x.field` in the open documents'
+        # programs, by the type of x
+        for b in list(ls.analyses.values()):
+            if b.program is None or b.module is None:
+                continue
+            modules = [m for m in b.program.modules if m.path != b.display] + [b.module]
+            spans += field_uses(env_of(b.program), modules, key)
+    seen: set[tuple[str, int, int]] = set()
+    for span in spans:
+        if (span.file, span.offset, span.end_offset) in seen:
             continue
-        loc = ls.location(o.span, a)
+        seen.add((span.file, span.offset, span.end_offset))
+        loc = ls.location(span, a)
         if loc is not None:
             out.append(loc)
     return out
 
 
 @server.feature(lsp.TEXT_DOCUMENT_DOCUMENT_SYMBOL)
-async def symbols(ls: RssmServer, params: lsp.DocumentSymbolParams
-                  ) -> list[lsp.DocumentSymbol] | None:
+async def symbols(ls: RssmServer, params: lsp.DocumentSymbolParams) -> RawJson | None:
     a = await ls.current(params.text_document.uri)
     if a is None:
         return None
     enc = ls.encoding
-    return await run_job(lambda: document_symbols(a.module, a.lines, enc), "rssm-outline")
+    cached = a.outlines.get(enc)
+    if cached is not None:
+        return RawJson(cached)
+    return await run_job(lambda: outline(a, enc), "rssm-outline")
+
+
+
+def outline(a: Analysis, encoding: str) -> RawJson:
+    """The document symbols of an analysis in JSON (made once per analysis: the outline of
+    a large file is asked for again and again while nothing changes)."""
+    got = a.outlines.get(encoding)
+    if got is None:
+        module, real = a.lazy_module.outline_view()
+        got = json.dumps(outline_values(module, a.lines, encoding, real))
+        a.outlines[encoding] = got
+    return RawJson(got)
 
 
 @server.feature(lsp.TEXT_DOCUMENT_COMPLETION,
@@ -639,12 +781,14 @@ async def completion(ls: RssmServer, params: lsp.CompletionParams) -> lsp.Comple
     await ls.ensure_index(a)
     lines = LineIndex(got[0])
     offset = lines.offset(params.position, ls.encoding)
-    items = complete(a.module, a.index, got[0], offset)
+    items = complete(a.module, a.index, got[0], offset, a.program, a.system)
     return lsp.CompletionList(is_incomplete=False, items=items)
 
 
 def _rename_target(ls: RssmServer, a: Analysis, pos: lsp.Position
                    ) -> tuple[Occurrence, Definition] | None:
+    """The renameable name at a position (what prepareRename offers; rename.target is the
+    same for the in-process tests)."""
     occ = ls.occurrence(a, pos)
     if occ is None:
         return None
@@ -670,7 +814,10 @@ async def prepare_rename(ls: RssmServer, params: lsp.PrepareRenameParams
 
 @server.feature(lsp.TEXT_DOCUMENT_RENAME)
 async def rename(ls: RssmServer, params: lsp.RenameParams) -> lsp.WorkspaceEdit | None:
-    from pygls.exceptions import JsonRpcInvalidParams
+    """The declaration and its uses in every file (rename.py plans and checks the edits in a
+    job's thread). A new name that would clash, or change what the specification means, is
+    refused with a RequestFailed error that names the clash."""
+    from rssm_dsl.lsp import rename as renaming
 
     a = await ls.indexed(params.text_document.uri)
     if a is None or not a.analyzable:
@@ -683,13 +830,38 @@ async def rename(ls: RssmServer, params: lsp.RenameParams) -> lsp.WorkspaceEdit 
     if found is None:
         raise JsonRpcInvalidParams("this is not a name that can be renamed here")
     occ, _ = found
+    indexes = [x.lazy_index for x in ls.analyses.values()]
+    try:
+        root = ls.workspace.root_path
+    except RuntimeError:
+        root = None
+    overrides = ls.overrides()
+    workspace: list[SymbolIndex] = []
+
+    def references(d: Definition) -> list[Occurrence]:
+        """Those of the open documents and of the workspace's files (in the job's thread)."""
+        if not workspace:
+            workspace.extend([x.get() for x in indexes] + ls.workspace_indexes(root, overrides))
+        seen: dict[tuple[str, int, int], Occurrence] = {}
+        for ix in workspace:
+            if renaming.same_declaration(ix, d):
+                for o in ix.references(d.key):
+                    seen.setdefault((o.span.file, o.span.offset, o.span.end_offset), o)
+        return list(seen.values())
+
+    try:
+        edits = await run_job(lambda: renaming.plan(a.path, overrides, a.display,
+                                                    occ.span.offset, new, references),
+                              "rssm-rename")
+    except renaming.RenameRefused as e:
+        raise JsonRpcException(str(e), code=renaming.REQUEST_FAILED) from None
     changes: dict[str, list[lsp.TextEdit]] = {}
-    for o in await ls.all_references(occ.key):
-        if is_stdlib(o.span.file):
-            continue
-        loc = ls.location(o.span, a)
-        if loc is not None:
-            changes.setdefault(loc.uri, []).append(lsp.TextEdit(range=loc.range, new_text=new))
+    for file, file_edits in edits.items():
+        for start, end, text in file_edits:
+            loc = ls.location(Span(file, 1, 1, 1, 1, start, end), a)
+            if loc is not None:
+                changes.setdefault(loc.uri, []).append(lsp.TextEdit(range=loc.range,
+                                                                    new_text=text))
     return lsp.WorkspaceEdit(changes=changes)
 
 

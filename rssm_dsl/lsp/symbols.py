@@ -7,9 +7,10 @@ and send, on every request."""
 from __future__ import annotations
 
 from collections.abc import Callable, Iterable
-from typing import TypeVar
+from typing import Any, TypeVar
 
 from lsprotocol import types as lsp
+from pygls.protocol import default_converter
 
 from rssm_dsl.lsp.positions import LineIndex
 from rssm_dsl.source import Span
@@ -18,6 +19,7 @@ from rssm_dsl.syntax import ast
 K = lsp.SymbolKind
 MAX_SYMBOLS = 10_000
 X = TypeVar("X")
+Symbol = dict[str, Any]      # a DocumentSymbol as JSON values
 
 
 def _type_text(t: ast.TypeExpr) -> str:
@@ -38,38 +40,47 @@ class _Outline:
         self.real = real
         self.left = MAX_SYMBOLS
 
-    def each(self, items: Iterable[X], fn: Callable[[X], lsp.DocumentSymbol]
-             ) -> list[lsp.DocumentSymbol]:
+    def each(self, items: Iterable[X], fn: Callable[[X], Symbol]) -> list[Symbol]:
         """fn of each item, while the outline has room."""
-        out: list[lsp.DocumentSymbol] = []
+        out: list[Symbol] = []
         for x in items:
             if self.left <= 0:
                 break
             out.append(fn(x))
         return out
 
-    def sym(self, name: str, kind: lsp.SymbolKind, full: Span, sel: Span,
-            detail: str | None = None,
-            children: list[lsp.DocumentSymbol] | None = None) -> lsp.DocumentSymbol:
-        self.left -= 1
-        rng = self.lines.range(self.real(full), self.encoding)
-        sel_rng = self.lines.range(self.real(sel), self.encoding)
-        # the selection range must be contained in the full range
-        if (sel_rng.start.line, sel_rng.start.character) < (rng.start.line, rng.start.character) \
-                or (sel_rng.end.line, sel_rng.end.character) > (rng.end.line, rng.end.character):
-            sel_rng = lsp.Range(start=rng.start, end=rng.start)
-        return lsp.DocumentSymbol(name=name or "_", kind=kind, range=rng,
-                                  selection_range=sel_rng, detail=detail,
-                                  children=children or None)
+    def _range(self, span: Span) -> dict[str, dict[str, int]]:
+        (l0, c0), (l1, c1) = self.lines.ends_of(self.real(span), self.encoding)
+        return {"start": {"line": l0, "character": c0}, "end": {"line": l1, "character": c1}}
 
-    def buffer(self, b: ast.BufferDecl) -> lsp.DocumentSymbol:
+    def sym(self, name: str, kind: lsp.SymbolKind, full: Span, sel: Span,
+            detail: str | None = None, children: list[Symbol] | None = None) -> Symbol:
+        self.left -= 1
+        rng = self._range(full)
+        sel_rng = self._range(sel)
+        # the selection range must be contained in the full range
+        start, end = rng["start"], rng["end"]
+        if (sel_rng["start"]["line"], sel_rng["start"]["character"]) \
+                < (start["line"], start["character"]) \
+                or (sel_rng["end"]["line"], sel_rng["end"]["character"]) \
+                > (end["line"], end["character"]):
+            sel_rng = {"start": start, "end": start}
+        out: Symbol = {"name": name or "_", "kind": kind.value, "range": rng,
+                       "selectionRange": sel_rng}
+        if detail is not None:
+            out["detail"] = detail
+        if children:
+            out["children"] = children
+        return out
+
+    def buffer(self, b: ast.BufferDecl) -> Symbol:
         peer = f" {'to' if b.direction is ast.Direction.OUTPUT else 'from'} {b.peer}" \
             if b.peer else ""
         mode = f" {b.mode.value}" if b.mode else ""
         return self.sym(b.name, K.Field, b.span, b.name_span,
                         f"{b.direction.value}: {_type_text(b.type)}{peer}{mode}")
 
-    def behaviour(self, bd: ast.BehaviourDecl) -> lsp.DocumentSymbol:
+    def behaviour(self, bd: ast.BehaviourDecl) -> Symbol:
         kids = self.each(bd.updates, lambda u: self.sym(
             f"update {u.target}", K.Function, u.span, u.target_span,
             "partial function" + ("" if u.plain else f", {len(u.cases)} cases")))
@@ -77,7 +88,7 @@ class _Outline:
             c.name, K.Event, c.span, c.name_span, f"{c.kind} condition"))
         return self.sym(bd.name, K.Method, bd.span, bd.name_span, "behaviour", kids)
 
-    def subsystem(self, s: ast.SubsystemDecl) -> lsp.DocumentSymbol:
+    def subsystem(self, s: ast.SubsystemDecl) -> Symbol:
         kids = self.each(s.params, lambda p: self.sym(
             p.name, K.Constant, p.span, p.name_span, f"param: {_type_text(p.type)}"))
         kids += self.each(s.memory, lambda m: self.sym(
@@ -88,13 +99,13 @@ class _Outline:
         return self.sym(s.name, K.Class, s.span, s.name_span,
                         f"{s.kind.value} subsystem{freq}", kids)
 
-    def agent(self, a: ast.AgentDecl) -> lsp.DocumentSymbol:
+    def agent(self, a: ast.AgentDecl) -> Symbol:
         kids = self.each(a.subsystems, self.subsystem)
         kids += self.each(a.devices, lambda d: self.sym(
             d.name, K.Object, d.span, d.name_span, f"real {d.kind.value}: {d.device}"))
         return self.sym(a.name, K.Module, a.span, a.name_span, "agent", kids)
 
-    def decl(self, d: ast.Decl) -> lsp.DocumentSymbol:
+    def decl(self, d: ast.Decl) -> Symbol:
         match d:
             case ast.SystemDecl():
                 kids = self.each(d.agents, self.agent)
@@ -129,11 +140,23 @@ class _Outline:
         raise AssertionError(d)
 
 
-def document_symbols(module: ast.Module | None, lines: LineIndex, encoding: str,
-                     real: Callable[[Span], Span] = _same) -> list[lsp.DocumentSymbol]:
-    """The outline of `module`; `real` maps its spans to the text's (an AST whose spans are
-    stale after an incremental analysis is outlined without mapping all of it first)."""
+def outline_values(module: ast.Module | None, lines: LineIndex, encoding: str,
+                   real: Callable[[Span], Span] = _same) -> list[Symbol]:
+    """The outline of `module` as the JSON values of DocumentSymbols (what is sent: made
+    directly, for the outline of a large file is long to convert); `real` maps its spans to
+    the text's (an AST whose spans are stale after an incremental analysis is outlined
+    without mapping all of it first)."""
     if module is None:
         return []
     outline = _Outline(lines, encoding, module.path, real)
     return outline.each(module.decls, outline.decl)
+
+
+def document_symbols(module: ast.Module | None, lines: LineIndex, encoding: str,
+                     real: Callable[[Span], Span] = _same) -> list[lsp.DocumentSymbol]:
+    """The outline as DocumentSymbols."""
+    values = outline_values(module, lines, encoding, real)
+    return _CONVERTER.structure(values, list[lsp.DocumentSymbol])  # type: ignore[no-any-return]
+
+
+_CONVERTER = default_converter()  # type: ignore[no-untyped-call]

@@ -12,9 +12,16 @@ from pytest_lsp import ClientServerConfig, LanguageClient, client_capabilities
 
 
 def track_versions(client: LanguageClient) -> None:
-    """Record the version of every publishDiagnostics (the default handler drops it)."""
+    """Record the version of every publishDiagnostics (the default handler drops it), and
+    answer client/registerCapability as an editor does (recording what is registered)."""
     versions: dict[str, int | None] = {}
     client.diagnostic_versions = versions  # type: ignore[attr-defined]
+    registrations: list[lsp.Registration] = []
+    client.registrations = registrations  # type: ignore[attr-defined]
+
+    @client.feature(lsp.CLIENT_REGISTER_CAPABILITY)
+    def register(params: lsp.RegistrationParams) -> None:
+        registrations.extend(params.registrations)
 
     def publish(params: lsp.PublishDiagnosticsParams) -> None:
         client.diagnostics[params.uri] = params.diagnostics
