@@ -63,12 +63,25 @@ class LazyIndex:
     program: Program | None
     fallback: LazyIndex | None = None
     shifts: ShiftMap | None = None          # stale spans of an incremental parse
+    # after an incremental analysis: the index of an earlier text whose declarations outside
+    # the system are the same (an incremental analysis reparses one agent only)
+    outside_from: LazyIndex | None = None
     value: SymbolIndex | None = None
     lock: threading.Lock = field(default_factory=threading.Lock, repr=False)
 
     @property
     def ready(self) -> bool:
         return self.value is not None
+
+    def outside(self) -> SymbolIndex | None:
+        """An index whose definitions outside the system (types, record fields, enum
+        members, constants, externs, devices) are this text's, if one is built: this one, or
+        that of the earlier text it was made from. Its positions may be stale."""
+        if self.value is not None:
+            return self.value
+        if self.outside_from is not None:
+            return self.outside_from.value
+        return None
 
     def get(self) -> SymbolIndex:
         with self.lock:
@@ -118,6 +131,11 @@ class LazyModule:
     def ready(self) -> bool:
         return self.value is not None or self.stale is None
 
+    def names(self) -> ast.Module | None:
+        """The AST for what needs its names, not its positions: the mapped one if it is
+        built, the stale one otherwise (same names, stale spans)."""
+        return self.value if self.value is not None else self.stale
+
     def outline_view(self) -> tuple[ast.Module | None, Callable[[Span], Span]]:
         """The AST and how to map its spans to the text's: the mapped AST when it is built,
         the stale one and its shifts otherwise (for what needs few of its spans)."""
@@ -154,6 +172,8 @@ class Analysis:
     how: str = "full"                 # "full" or "incremental" (for tests and figures)
     # the outline of this text in JSON, by position encoding, made once (server.outline)
     outlines: dict[str, str] = field(default_factory=dict, compare=False, repr=False)
+    outline_lock: threading.Lock = field(default_factory=threading.Lock, compare=False,
+                                         repr=False)
 
     @property
     def module(self) -> ast.Module | None:
@@ -251,12 +271,13 @@ def analyze_text(uri: str, path: Path, display: str, text: str, version: int | N
     overrides = dict(overrides)
     overrides[path.resolve()] = text
     state = previous.incremental if previous is not None else None
-    if state is not None:
+    if state is not None and previous is not None:
         try:
             got = reparse(state, text, display,
                           lambda p: _imports_unchanged(p, display, overrides))
             step = None if got is None else _incremental(uri, path, display, text, version,
-                                                         lines, got, kept_system)
+                                                         lines, got, kept_system,
+                                                         previous.lazy_index)
             if step is not None:
                 return step
         except Exception:
@@ -342,8 +363,8 @@ def _loader_checks(module: ast.Module, display: str, text: str,
 
 
 def _incremental(uri: str, path: Path, display: str, text: str, version: int | None,
-                 lines: LineIndex, got: Reparsed, kept_system: System | None
-                 ) -> Analysis | None:
+                 lines: LineIndex, got: Reparsed, kept_system: System | None,
+                 previous_index: LazyIndex) -> Analysis | None:
     """The analysis of a reparsed text, or None when the whole text must be analysed (an
     error of the loader's checks stops the compiler before the semantic passes)."""
     loader = _loader_checks(got.state.module, display, text, got.state.shifts)
@@ -377,7 +398,8 @@ def _incremental(uri: str, path: Path, display: str, text: str, version: int | N
     mine = _finish(mine + semantic + loader, got.state.module)
     return Analysis(
         uri, version, path, display, text, lines, LazyModule(got.state.module, shifts),
-        got.program, tuple(mine), LazyIndex(got.program, shifts=shifts),
+        got.program, tuple(mine), LazyIndex(got.program, shifts=shifts, outside_from=(
+            previous_index if previous_index.ready else previous_index.outside_from)),
         system if system is not None else kept_system, got.state,
         "incremental",
     )

@@ -76,6 +76,7 @@ from rssm_dsl.syntax.format import FormatterBug, format_text, keywords
 log = logging.getLogger("rssmc.lsp")
 
 WATCHED_GLOBS = ("**/*.rssm", "**/*.py")
+WARM_SECONDS = 0.05  # idle time after an analysis before its index is built unasked
 DEBOUNCE_SECONDS = float(os.environ.get("RSSMC_LSP_DEBOUNCE_MS", "10")) / 1000
 # How long a request waits for the analysis of the text it was made on.
 WAIT_SECONDS = 1.0
@@ -217,6 +218,7 @@ class RssmServer(LanguageServer):
         self.waiters: dict[str, list[asyncio.Future[None]]] = {}
         self.workspace_cache: dict[Path, tuple[float, SymbolIndex]] = {}
         self.warming: dict[str, Job[object]] = {}    # building the index of an analysis
+        self.warm_timers: dict[str, asyncio.TimerHandle] = {}
 
     @property
     def rssm_protocol(self) -> RssmProtocol:
@@ -312,7 +314,7 @@ class RssmServer(LanguageServer):
             job.cancel()
 
     def stop_all(self) -> None:
-        for uri in list(self.warming):
+        for uri in set(self.warming) | set(self.warm_timers):
             self._cool(uri)
         for timer in self.timers.values():
             timer.cancel()
@@ -348,25 +350,33 @@ class RssmServer(LanguageServer):
             self._dependents(analysis)
 
     def _warm(self, uri: str, a: Analysis) -> None:
-        """Build the AST with real spans and the symbol index of a published analysis while
-        the editor is idle, so that hover, completion and the outline find them ready (an
-        edit stops it: the next analysis makes them stale)."""
+        """Once the editor has been idle for WARM_SECONDS after publishing an analysis, build
+        its outline, its AST with real spans and its symbol index, so that hover and the
+        outline find them ready. Not at once: the requests that follow an edit at once
+        (completion) would share the processor with it. An edit stops it: the next analysis
+        makes them stale."""
         if a.lazy_module.ready and a.lazy_index.ready:
             return
         self._cool(uri)
-
         encoding = self.encoding
 
         def build() -> object:
             outline(a, encoding)
             return a.lazy_module.get(), a.lazy_index.get()
 
-        job: Job[object] = Job(build, asyncio.get_running_loop(), "rssm-warm")
-        self.warming[uri] = job
-        job.future.add_done_callback(
-            lambda f: self.warming.pop(uri, None) if self.warming.get(uri) is job else None)
+        def start() -> None:
+            self.warm_timers.pop(uri, None)
+            job: Job[object] = Job(build, asyncio.get_running_loop(), "rssm-warm")
+            self.warming[uri] = job
+            job.future.add_done_callback(
+                lambda f: self.warming.pop(uri, None) if self.warming.get(uri) is job else None)
+
+        self.warm_timers[uri] = asyncio.get_running_loop().call_later(WARM_SECONDS, start)
 
     def _cool(self, uri: str) -> None:
+        timer = self.warm_timers.pop(uri, None)
+        if timer is not None:
+            timer.cancel()
         job = self.warming.pop(uri, None)
         if job is not None:
             job.cancel()
@@ -761,11 +771,12 @@ async def symbols(ls: RssmServer, params: lsp.DocumentSymbolParams) -> RawJson |
 def outline(a: Analysis, encoding: str) -> RawJson:
     """The document symbols of an analysis in JSON (made once per analysis: the outline of
     a large file is asked for again and again while nothing changes)."""
-    got = a.outlines.get(encoding)
-    if got is None:
-        module, real = a.lazy_module.outline_view()
-        got = json.dumps(outline_values(module, a.lines, encoding, real))
-        a.outlines[encoding] = got
+    with a.outline_lock:     # a request and the idle-time build: one makes it, once
+        got = a.outlines.get(encoding)
+        if got is None:
+            module, real = a.lazy_module.outline_view()
+            got = json.dumps(outline_values(module, a.lines, encoding, real))
+            a.outlines[encoding] = got
     return RawJson(got)
 
 
@@ -777,11 +788,16 @@ async def completion(ls: RssmServer, params: lsp.CompletionParams) -> lsp.Comple
     a = ls.analyses.get(uri) or await ls.current(uri)
     if a is None or got is None or not a.analyzable:
         return None
-    await ls.ensure_module(a)
-    await ls.ensure_index(a)
+    # completion reads names, not positions: the stale AST of an incremental analysis and
+    # the index of an earlier text with the same declarations outside the system will do
+    # (right after an edit nothing has to be built)
+    index = a.lazy_index.outside()
+    if index is None:
+        await ls.ensure_index(a)
+        index = a.index
     lines = LineIndex(got[0])
     offset = lines.offset(params.position, ls.encoding)
-    items = complete(a.module, a.index, got[0], offset, a.program, a.system)
+    items = complete(a.lazy_module.names(), index, got[0], offset, a.program, a.system)
     return lsp.CompletionList(is_incomplete=False, items=items)
 
 

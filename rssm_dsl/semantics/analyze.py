@@ -9,6 +9,7 @@ from rssm_dsl.diagnostics import Diagnostic, DiagnosticBag, Related
 from rssm_dsl.semantics.behaviours import BehaviourPass
 from rssm_dsl.semantics.channels import ChannelPass
 from rssm_dsl.semantics.checks import CHECKS, CheckContext
+from rssm_dsl.semantics.checks.usage import names_read
 from rssm_dsl.semantics.declarations import DeclarationPass, Globals
 from rssm_dsl.semantics.loader import Program
 from rssm_dsl.semantics.model import Agent, Behaviour, Buffer, Device, Subsystem, Switch, System
@@ -32,6 +33,7 @@ class Behaviours:
     switches: tuple[Switch, ...]
     written: set[str]
     unchecked: set[str]
+    read: set[str]                  # the names its expressions read (checks/usage.py)
 
 
 @dataclass(frozen=True)
@@ -86,7 +88,8 @@ def _agent_work(a: ast.AgentDecl, g: Globals, decls: DeclarationPass) -> AgentWo
             assert s.decl is not None
             bp = BehaviourPass(bag, g, s)
             behaviours, switches = bp.run(s.decl)
-            subsystems[s.id] = Behaviours(behaviours, switches, bp.usage.written, bp.unchecked)
+            subsystems[s.id] = Behaviours(behaviours, switches, bp.usage.written, bp.unchecked,
+                                          names_read(s.decl))
     return AgentWork(a, shell, subsystems, tuple(bag.items))
 
 
@@ -131,6 +134,7 @@ def analyze(program: Program, bag: DiagnosticBag, memo: AgentMemo | None = None
     agents: list[Agent] = []
     sub_decls: dict[str, ast.SubsystemDecl] = {}
     written: dict[str, set[str]] = {}
+    read: dict[str, set[str]] = {}
     unchecked: dict[str, set[str]] = {}
     for a in agent_shells:
         subsystems: list[Subsystem] = []
@@ -151,6 +155,7 @@ def analyze(program: Program, bag: DiagnosticBag, memo: AgentMemo | None = None
             subsystems.append(sub)
             sub_decls[sub.id] = shell.decl
             written[sub.id] = b.written
+            read[sub.id] = b.read
             unchecked[sub.id] = b.unchecked
         agents.append(Agent(a.name, a.span, tuple(subsystems), tuple(devices)))
 
@@ -160,7 +165,7 @@ def analyze(program: Program, bag: DiagnosticBag, memo: AgentMemo | None = None
     property_reads: dict[str, set[str]] = {}
     properties = check_properties(bag, system, sysdecl.properties, g.symbols(), sub_decls,
                                   property_reads)
-    ctx = CheckContext(bag, system, sub_decls, written, unchecked, property_reads,
+    ctx = CheckContext(bag, system, sub_decls, written, read, unchecked, property_reads,
                        root_file=root.span.file)
     for check in CHECKS:
         check(ctx)

@@ -190,3 +190,36 @@ def test_the_semantic_passes_run_again_on_the_edited_agent_only(
     assert sorted(analysed) == ["a1", "a2", "a3", "a4"]
     assert "E201" in [d.code for d in c.diagnostics]
     assert _diags(c) == _diags(analyze_text("file:///memo", path, shown, t3, 3, {}, None))
+
+
+def test_completion_needs_nothing_built_after_an_edit() -> None:
+    """Right after an incremental analysis, completion reads names only: the stale AST
+    (with the edited agent's new declarations) and the index of the text before, whose
+    declarations outside the system are the same. Completing from them gives what
+    completing from the mapped AST and the new index gives."""
+    from rssm_dsl.lsp.completion import complete
+
+    path = Path("/tmp/rssm-incremental-test/complete.rssm")
+    shown = display_path(path)
+    text = spec(3)
+    a = analyze_text("file:///complete", path, shown, text, 1, {}, None)
+    a.lazy_index.get()
+    at = text.index("agent a2 {")
+    t2 = text[:at] + text[at:].replace("memory phase: float = 0.0",
+                                       "memory phase: float = 0.0\n      memory spare: float = 0.0", 1)
+    b = analyze_text("file:///complete", path, shown, t2, 2, {}, a)
+    assert b.how == "incremental"
+    assert not b.lazy_index.ready and not b.lazy_module.ready
+    assert b.lazy_index.outside() is a.lazy_index.value
+    names = b.lazy_module.names()
+    assert names is not None and "spare" in [
+        m.name for d in names.decls if isinstance(d, ast.SystemDecl)
+        for ag in d.agents if ag.name == "a2" for s in ag.subsystems for m in s.memory]
+    offset = t2.index(":= ", t2.index("agent a2 {")) + 3
+
+    def labels(module: ast.Module | None, index: Any) -> list[str]:
+        return sorted(i.label for i in complete(module, index, t2, offset, b.program, b.system))
+
+    quick = labels(names, b.lazy_index.outside())
+    assert "spare" in quick
+    assert quick == labels(b.module, b.index)

@@ -15,6 +15,7 @@ class CheckContext:
     system: System
     decls: dict[str, ast.SubsystemDecl]     # subsystem id -> its declaration
     written: dict[str, set[str]]            # subsystem id -> outputs/memory written
+    read: dict[str, set[str]]               # subsystem id -> names its expressions read
     # subsystem id -> behaviours with a switch that has errors: their switches are not
     # checked again, nor the reachability of the subsystem's behaviours
     unchecked: dict[str, set[str]] = field(default_factory=dict)

@@ -39,6 +39,8 @@ def _behaviour_exprs(bd: ast.BehaviourDecl) -> Iterator[tuple[ast.Expr, str | No
 
 
 def names_read(decl: ast.SubsystemDecl) -> set[str]:
+    """The names the subsystem's expressions read (analyze keeps them with each agent's
+    work: see AgentMemo)."""
     out: set[str] = set()
     for root, own in _exprs(decl):
         out.update(n.name for n in names(root) if n.name != own)
@@ -50,7 +52,7 @@ def check_usage(ctx: CheckContext) -> None:
         decl = ctx.decls.get(s.id)
         if decl is None or not s.behaviours:
             continue  # no behaviours: E609 says it all
-        read = names_read(decl) | ctx.property_reads.get(s.id, set())
+        read = ctx.read[s.id] | ctx.property_reads.get(s.id, set())
         written = ctx.written.get(s.id, set())
         for b in s.inputs:
             if b.name not in read:
