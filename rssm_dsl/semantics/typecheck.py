@@ -142,6 +142,9 @@ class Scope:
         return set(self.symbols) | set(self.extra) | set(BUILTIN_CONSTS)
 
 
+_INT_ARITH = frozenset(("+", "-", "*", "/", "%"))
+
+
 class ExprChecker:
     def __init__(self, bag: DiagnosticBag) -> None:
         self.bag = bag
@@ -169,6 +172,14 @@ class ExprChecker:
     def _value(e: ast.Expr, scope: Scope) -> int | None:
         """The value of a checked constant int of a context computed before the run (None
         for anything else, and for one outside 64 bits)."""
+        if type(e) is ast.Literal:        # the common cases first, as below
+            v = e.value
+            if isinstance(v, int) and not isinstance(v, bool):
+                return v if INT_MIN <= v <= INT_MAX else None
+            return None                   # a literal is never recorded in scope.constants
+        if type(e) is ast.Binary:
+            found = scope.constants.get(id(e))
+            return found[1] if found is not None and found[0] is e else None
         literal = int_literal(e)
         if literal is None and isinstance(e, ast.Unary) and e.op == "-":
             negated = int_literal(e.operand)
@@ -215,10 +226,12 @@ class ExprChecker:
                            f"{what} holds the integers from {want.lo} to {want.hi}")
 
     def _Literal(self, e: ast.Literal, scope: Scope, expected: Type | None) -> Type | None:
-        if isinstance(e.value, bool):
+        value = e.value
+        if isinstance(value, bool):
             return BOOL
-        if isinstance(e.value, int):
-            self._constant(e, e.value, scope, literal=True)
+        if isinstance(value, int):
+            if not INT_MIN <= value <= INT_MAX:  # (a literal in range is not recorded)
+                self._constant(e, value, scope, literal=True)
             return INT
         return FLOAT
 
@@ -306,12 +319,23 @@ class ExprChecker:
         return INT if isinstance(t, RangeT) else t
 
     def _Binary(self, e: ast.Binary, scope: Scope, expected: Type | None) -> Type | None:
-        if e.op in ("and", "or"):
-            self.expect(e.left, scope, BOOL, f"the left operand of '{e.op}'")
-            self.expect(e.right, scope, BOOL, f"the right operand of '{e.op}'")
+        op = e.op
+        if op == "and" or op == "or":
+            self.expect(e.left, scope, BOOL, f"the left operand of '{op}'")
+            self.expect(e.right, scope, BOOL, f"the right operand of '{op}'")
             return BOOL
         lt = self.check(e.left, scope)
         rt = self.check(e.right, scope)
+        if lt is INT and rt is INT and op in _INT_ARITH:
+            # the common case (long chains of int arithmetic), as _arith has it
+            if op == "/":
+                return FLOAT
+            if op != "%" and scope.no_calls is not None:
+                a, b = self._value(e.left, scope), self._value(e.right, scope)
+                if a is not None and b is not None:
+                    self._constant(e, a + b if op == "+" else a - b if op == "-" else a * b,
+                                   scope)
+            return INT
         if lt is None or rt is None:
             return BOOL if e.op in ("==", "!=", "<", "<=", ">", ">=") else None
         if e.op in ("==", "!="):
