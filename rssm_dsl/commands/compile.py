@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import gc
 from pathlib import Path
 from typing import Annotated
 
@@ -20,12 +21,21 @@ from rssm_dsl.commands.common import (
 )
 
 
+def one_shot() -> None:
+    """The cyclic garbage collector off for the rest of the command: what the compiler
+    allocates lives until the command ends, and is freed by reference counting; with the
+    collector on, its first pass after compiling rescans every node (0.5 s of 4 s on 1 MB
+    of dense expressions)."""
+    gc.disable()
+
+
 def check(file: FileArg, format: FormatOpt = Format.text) -> None:
     """Parse and check a specification; print diagnostics. Exit 1 if there are errors."""
 
     def run() -> int:
         from rssm_dsl.pipeline import compile_file
 
+        one_shot()
         # every diagnostic comes from the checks; building the HPN adds none
         comp = compile_file(file, build=False)
         report(comp, format)
@@ -52,6 +62,7 @@ def compile_cmd(
         from rssm_dsl.emit.write import write_outputs
         from rssm_dsl.pipeline import compile_file
 
+        one_shot()
         kinds = [k.strip() for k in emit.split(",") if k.strip()]
         unknown = [k for k in kinds if k not in EMITTERS]
         if unknown:
