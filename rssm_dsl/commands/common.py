@@ -24,6 +24,7 @@ if TYPE_CHECKING:
 
 EXIT_OK, EXIT_ERRORS, EXIT_USAGE, EXIT_INTERNAL = 0, 1, 2, 70
 EXIT_INTERRUPTED = 130
+EXIT_STUCK = 3           # simulate: a deadlock, or a subsystem stalled while the rest ran
 
 
 class Format(str, Enum):

@@ -14,12 +14,16 @@ from rssm_dsl.commands.common import (
     EXIT_ERRORS,
     EXIT_INTERRUPTED,
     EXIT_OK,
+    EXIT_STUCK,
     EXIT_USAGE,
     FileArg,
     Format,
     guarded,
     report,
 )
+from rssm_dsl.interp.watchdog import STALL_PERIODS
+
+DEFAULT_UNTIL = 60.0    # seconds: the bound of a run given none (a system may never end)
 
 if TYPE_CHECKING:
     from rssm_dsl.diagnostics import Diagnostic
@@ -100,6 +104,11 @@ def simulate(
         "--device-option", help="An option of a device: ID:KEY=VALUE (repeatable; ID may be "
                                 "a pattern).")] = None,
     workers: Annotated[int, typer.Option(min=1, help="Worker threads (concurrent mode).")] = 4,
+    stall_periods: Annotated[int, typer.Option(
+        "--stall-periods", min=0,
+        help="Stop (E809, exit 3) when a subsystem completes no iteration for this many "
+             "periods of the slowest paced subsystem or device while the rest runs on; 0: "
+             "never.")] = STALL_PERIODS,
     all_interleavings: Annotated[bool, typer.Option(
         "--all-interleavings", help="Deterministic mode: let the seeded choice pick among "
                                     "every enabled transition, local steps included "
@@ -114,8 +123,10 @@ def simulate(
 ) -> None:
     """Execute the system's HPN: tokens move as the paper's scheduler moves them, behaviours
     switch on their conditions, data flows through the buffers. Prints a summary at the end.
-    Exit 0 when the run stops normally, 1 on errors, a deadlock or a reproduced
-    counterexample, 2 on usage errors, 130 on Ctrl-C."""
+    Without --until, --steps or --replay the run stops at t = 60 s at the latest.
+    Exit 0 when the run stops normally, 1 on errors or a reproduced counterexample, 2 on
+    usage errors, 3 when the run cannot go on: a deadlock (E805) or a subsystem stalled
+    while the rest runs (E809), 130 on Ctrl-C."""
 
     def run() -> int:
         if mode not in ("deterministic", "concurrent"):
@@ -128,7 +139,7 @@ def simulate(
             typer.echo(f"rssmc: {e.message}", err=True)
             return EXIT_USAGE
         return _simulate(file, steps, until, mode, seed, trace, replay, devices, options,
-                         workers, live, format, quiet, not all_interleavings)
+                         workers, live, format, quiet, not all_interleavings, stall_periods)
 
     guarded(run)
 
@@ -136,7 +147,8 @@ def simulate(
 def _simulate(file: Path, steps: int | None, until: float | None, mode: str, seed: int,
               trace: Path | None, replay: Path | None, devices: dict[str, str],
               options: dict[str, dict[str, str]], workers: int, live: bool | None,
-              fmt: Format, quiet: bool, eager: bool = True) -> int:
+              fmt: Format, quiet: bool, eager: bool = True,
+              stall_periods: int = STALL_PERIODS) -> int:
     from rssm_dsl.interp import RunConfig, SimOptions, Simulator, build_runtime
     from rssm_dsl.interp.errors import SetupError
     from rssm_dsl.interp.replay import judge
@@ -178,7 +190,11 @@ def _simulate(file: Path, steps: int | None, until: float | None, mode: str, see
     show_live = (sys.stderr.isatty() if live is None else live) and not quiet \
         and fmt is Format.text
     painter = _Live() if show_live else None
+    bounded = steps is not None or until is not None or replay is not None
+    if not bounded:
+        until = DEFAULT_UNTIL
     opts = SimOptions(mode=mode, seed=seed, max_steps=steps, until=until, workers=workers,
+                      stall_periods=stall_periods,
                       forced=forced, record_markings=cx is not None and cx.kind == "progress",
                       progress=painter, eager=eager,
                       trace_info={"spec": str(file),
@@ -196,6 +212,9 @@ def _simulate(file: Path, steps: int | None, until: float | None, mode: str, see
     diags = list(result.diagnostics)
     if verdict is not None:
         diags = [d for d in verdict.diagnostics if d not in diags] + diags
+    if not bounded and result.reason == "until":
+        result.message += (" (the default bound: pass --until or --steps to run longer or "
+                           "shorter)")
     if fmt is Format.json:
         _print_json(result, diags, verdict)
     else:
@@ -250,6 +269,8 @@ def _print_json(result: RunResult, diags: list[Diagnostic], verdict: ReplayVerdi
         "time": result.time, "wall": round(result.wall, 3),
         "diagnostics": [d.to_json() for d in diags],
         "marking": result.marking,
+        "waiting": [{"subsystem": b.owner, "place": b.place, "label": b.label}
+                    for b in result.blocked if any(m for _, m in b.needs)],
         "summary": result.summary.to_json() if result.summary else None,
     }
     if verdict is not None:
@@ -276,6 +297,8 @@ def _exit_code(result: RunResult, cx: Counterexample | None,
                verdict: ReplayVerdict | None) -> int:
     if result.reason == "interrupted":
         return EXIT_INTERRUPTED
+    if verdict is None and result.reason in ("deadlock", "stalled"):
+        return EXIT_STUCK
     if verdict is not None:
         if cx is not None and cx.kind in ("deadlock", "unsafe", "progress"):
             return EXIT_ERRORS if verdict.reproduced else EXIT_USAGE

@@ -122,6 +122,8 @@ CODES: tuple[Code, ...] = (
     Code("E807", "unsafe-firing", _E, "a firing would put a second token into a place"),
     Code("E808", "time-stands-still", _E,
          "the simulation fires endlessly without simulated time advancing"),
+    Code("E809", "subsystem-stalled", _E,
+         "a subsystem completes no iteration while the rest of the system runs on"),
     # render (rssmc render)
     Code("W850", "graphviz-missing", _W, "Graphviz `dot` is not installed: no SVG figures drawn"),
     Code("E851", "graphviz-failed", _E, "Graphviz `dot` failed to draw a page"),

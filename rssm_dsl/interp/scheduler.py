@@ -37,6 +37,7 @@ from rssm_dsl.interp.errors import EvalError, StopSimulation
 from rssm_dsl.interp.program import Runtime
 from rssm_dsl.interp.state import SubsystemState
 from rssm_dsl.interp.summary import Snapshot, snapshot
+from rssm_dsl.interp.watchdog import STALL_PERIODS, Stall, Watchdog
 
 PROGRESS_EVERY = 1024          # firings between two looks at the wall clock
 ZENO_FIRINGS = 2_000_000       # firings at one simulated instant before giving up (E808)
@@ -56,6 +57,7 @@ class SimOptions:
     macros: bool = True                         # ... compiled into macro steps (codegen)
     progress: Callable[[Snapshot], None] | None = None
     progress_interval: float = 0.5              # seconds of wall-clock time
+    stall_periods: int = STALL_PERIODS          # see watchdog.py (0: not watched)
     trace_info: dict[str, Any] = field(default_factory=dict)  # more fields of `start`
 
 
@@ -72,7 +74,8 @@ class Blocked:
 
 @dataclass
 class RunResult:
-    reason: str            # steps | until | finished | deadlock | error | interrupted | replayed
+    reason: str            # steps | until | finished | deadlock | stalled | error | interrupted
+                           # | replayed
                            # (or what a StopSimulation raised by a device says)
     message: str
     steps: int
@@ -109,6 +112,8 @@ class Simulator:
         self.rt = rt
         self.opt = options
         self.game = TokenGame(rt.net)
+        self.watchdog = Watchdog(rt, options.stall_periods if options.forced is None else 0)
+        self.stalled: set[str] = set()           # the subsystems of an E809
         (self.final,) = tuple(rt.net.final)
         self.markings: list[frozenset[int]] = []
         self.diagnostics: list[Diagnostic] = []
@@ -210,6 +215,46 @@ class Simulator:
                           "blocking receive, so that it waits for its peers")
         return _Stop("error", msg, diag)
 
+    def _stalled(self, stalls: list[Stall], now: int) -> _Stop:
+        """The run stops: these subsystems complete no iteration while the rest goes on."""
+        rt, net = self.rt, self.rt.net
+        blocked = self.blocked()
+        parts: list[str] = []
+        related: list[Related] = []
+        span = None
+        waiting: dict[str, str] = {}
+        for st in stalls:
+            s = st.subsystem
+            mine = [b for b in blocked if b.owner == s.id and any(m for _, m in b.needs)]
+            what = mine[0].label if mine else f"{s.id} ({s.behaviour})"
+            needs = [q for b in mine for _, m in b.needs for q in m]
+            since = f"since t = {st.since / 1e9:g} s" if st.since else "since the start"
+            parts.append(f"{what}, no iteration {since}"
+                         + (f" (waits for: {needs[0][1]})" if needs else ""))
+            waiting[s.id] = mine[0].place if mine else ""
+            where = net.place(mine[0].place).span if mine else s.model.span
+            if span is None:
+                span = where
+            else:
+                related.append(Related(where, what))
+            for name, label in needs[:3]:
+                related.append(Related(net.place(name).span, f"{s.id} waits for: {label}"))
+        assert span is not None
+        periods = self.watchdog.periods
+        msg = (f"{len(stalls)} subsystem(s) stalled at t = {now / 1e9:g} s while the rest of "
+               f"the system runs on: " + "; ".join(parts))
+        rt.emit({"event": "stalled", "waiting": waiting})
+        diag = Diagnostic("E809", msg, span,
+                          f"a subsystem is stalled after {periods} periods of the slowest "
+                          "paced subsystem or device without an iteration; `rssmc verify` "
+                          "shows the firing sequence that loses progress; change a "
+                          "communication mode or the order of sends and receives, or pass "
+                          "--stall-periods (0: never stop)", tuple(related))
+        self.stalled = {st.subsystem.id for st in stalls}
+        names = ", ".join(st.subsystem.id for st in stalls)
+        return _Stop("stalled", f"stalled at t = {now / 1e9:g} s: {names} complete(s) no "
+                     "iteration while the rest runs on (E809)", diag)
+
     def _deadlock(self) -> _Stop:
         rt, game = self.rt, self.game
         game.recompute_enabled()
@@ -299,7 +344,8 @@ class Simulator:
             steps, reason, message = rt.step, "interrupted", "interrupted (Ctrl-C)"
         if diag is not None:
             self.diagnostics.append(diag)
-        blocked = self.blocked() if reason == "deadlock" else []
+        blocked = self.blocked() if reason == "deadlock" else \
+            [b for b in self.blocked() if b.owner in self.stalled] if reason == "stalled" else []
         problems = rt.close_devices()
         summary = snapshot(rt, self.game, steps)
         result = RunResult(reason, message, steps, rt.time(), time.monotonic() - start,
@@ -504,6 +550,12 @@ class _Deterministic:
             self.clock.ns = self.until
             raise _Finish(steps, "until", f"reached t = {self.sim.opt.until:g} s")
         self.clock.ns = nxt
+        watchdog = self.sim.watchdog
+        if watchdog.active and nxt >= watchdog.next_check:
+            stalls = watchdog.stalls(nxt)
+            if stalls:
+                self.rt.step = steps
+                raise self.sim._stalled(stalls, nxt)
         push = self.local.append
         while timers and timers[0][0] <= nxt:
             push(heappop(timers)[1])
@@ -591,6 +643,10 @@ class _Concurrent:
             now = clock.now()
             if until is not None and now >= until:
                 return self.steps, "until", f"reached t = {opt.until:g} s (wall clock)"
+            if sim.watchdog.due(now):
+                stalls = sim.watchdog.stalls(now)
+                if stalls:
+                    raise sim._stalled(stalls, now)
             if self.steps % PROGRESS_EVERY == 0 and self.steps:
                 sim._progress(self.steps)
             try:

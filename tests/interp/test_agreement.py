@@ -166,3 +166,24 @@ def test_trace_replays_the_same_run(tmp_path: Path) -> None:
         to_mask(frozenset(rt.net.place(n).index for n in first.marking)))
     assert {s: x.vars for s, x in rt.subsystems.items()} == \
         {s: x.vars for s, x in rt2.subsystems.items()}
+
+
+@pytest.mark.parametrize(("spec", "stuck"), [
+    (SPECS / "starve.rssm", {"a1.c"}),
+    (EXAMPLES / "handover_stall.rssm", {"giver.c", "taker.c"}),
+    (EXAMPLES / "relay_blocking.rssm", set()),
+])
+def test_the_simulator_stalls_where_the_verifier_loses_progress(spec: Path,
+                                                                 stuck: set[str]) -> None:
+    """The subsystems a seeded run reports stalled (E809) are those whose progress the
+    verifier finds lost, and a spec without such a loss runs to its bound."""
+    comp = compiled(spec)
+    assert comp.hpn is not None
+    report = verify(flatten(comp.hpn))
+    assert {p.subsystem for p in report.progress} == stuck
+    result = Simulator(runtime(comp), SimOptions(until=20.0)).run()
+    if stuck:
+        assert result.reason == "stalled"
+        assert {b.owner for b in result.blocked} == stuck
+    else:
+        assert result.reason in ("until", "finished"), result.message

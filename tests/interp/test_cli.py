@@ -85,10 +85,112 @@ def test_usage_errors() -> None:
 
 def test_deadlock_exit_code_and_json(tmp_path: Path) -> None:
     r = rssmc("simulate", SPECS / "handshake_deadlock.rssm", "--until", "1", "-f", "json")
-    assert r.returncode == 1
+    assert r.returncode == 3          # the run cannot go on (not an error of the spec)
     out = json.loads(r.stdout)
     assert out["reason"] == "deadlock" and out["diagnostics"][0]["code"] == "E805"
     assert "p[1,c,greet,snd,1,wait]" in out["marking"]
+    assert {w["subsystem"] for w in out["waiting"]} == {"a1.c", "a2.c"}
+
+
+def test_controllers_that_block_each_other_while_the_rest_runs_are_reported(
+        tmp_path: Path) -> None:
+    """Two controllers send to each other in blocking mode before receiving: they freeze at
+    once while their effectors and motors tick on at 100 Hz (no global deadlock). The run
+    stops after 5 periods of the slowest subsystem (10 Hz: 0.5 s), names both controllers,
+    their behaviours and the buffers they wait on, writes the trace up to there, exits 3."""
+    trace = tmp_path / "t.jsonl"
+    r = rssmc("simulate", EXAMPLES / "handover_stall.rssm", "--until", "30", "--trace", trace,
+              "-f", "json")
+    assert r.returncode == 3, r.stderr
+    out = json.loads(r.stdout)
+    assert out["reason"] == "stalled" and out["time"] == 0.5
+    [diag] = [d for d in out["diagnostics"] if d["code"] == "E809"]
+    assert "giver.c (hold) waits in blocking send of ready" in diag["message"]
+    assert "taker.c (wait) waits in blocking send of ready" in diag["message"]
+    assert diag["span"]["line"] == 12                        # `output ready: ...` of giver.c
+    assert any(x["span"]["line"] == 40 for x in diag["related"])   # and of taker.c
+    assert {w["subsystem"] for w in out["waiting"]} == {"giver.c", "taker.c"}
+    events = read_trace(trace)
+    assert [e["event"] for e in events[-2:]] == ["stalled", "end"]
+    assert events[-1]["reason"] == "stalled"
+    # the effectors did run meanwhile: this is no deadlock
+    arms = {s["id"]: s["i"] for s in out["summary"]["subsystems"]}
+    assert arms["giver.e.arm"] >= 50 and arms["giver.c"] == 0
+    # a longer allowance: the same stall, later; 0 turns the watch off (the bound ends it)
+    r = rssmc("simulate", EXAMPLES / "handover_stall.rssm", "--until", "30", "--stall-periods",
+              "20", "-f", "json")
+    assert r.returncode == 3 and json.loads(r.stdout)["time"] == 2.0
+    r = rssmc("simulate", EXAMPLES / "handover_stall.rssm", "--until", "3", "--stall-periods",
+              "0", "-q")
+    assert r.returncode == 0, r.stderr
+    # the concurrent mode watches too (wall-clock periods)
+    r = rssmc("simulate", EXAMPLES / "handover_stall.rssm", "--mode", "concurrent", "--until",
+              "20", "-f", "json")
+    assert r.returncode == 3, r.stderr
+    out = json.loads(r.stdout)
+    assert out["reason"] == "stalled" and out["time"] < 5
+
+
+def test_a_consumer_that_ends_starves_its_blocking_producer(tmp_path: Path) -> None:
+    """x switches to `end` after 3 values; c then waits for ever in its blocking send to x
+    while y runs on: c is stalled (x has ended: it is not)."""
+    r = rssmc("simulate", SPECS / "starve.rssm", "-f", "json")
+    assert r.returncode == 3, r.stderr
+    out = json.loads(r.stdout)
+    assert out["reason"] == "stalled"
+    [diag] = [d for d in out["diagnostics"] if d["code"] == "E809"]
+    assert diag["message"].startswith("1 subsystem(s) stalled")
+    assert "a1.c (run) waits in blocking send of to_x" in diag["message"]
+    assert "a1.e.x" not in [w["subsystem"] for w in out["waiting"]]
+
+
+def test_a_slow_producer_is_no_stall(tmp_path: Path) -> None:
+    """A 100 Hz consumer that receives, blocking, from a 1 Hz producer waits 100 of its own
+    periods for each value: the system's rhythm, not a stall (the allowance counts periods
+    of the slowest paced subsystem)."""
+    spec = tmp_path / "slow.rssm"
+    spec.write_text(SLOW)
+    r = rssmc("simulate", spec, "--until", "8", "-f", "json")
+    assert r.returncode == 0, r.stdout
+    out = json.loads(r.stdout)
+    assert out["reason"] == "until"
+
+
+def test_a_run_without_a_bound_stops_at_the_default_one(tmp_path: Path) -> None:
+    spec = tmp_path / "slow.rssm"
+    spec.write_text(SLOW)
+    r = rssmc("simulate", spec, "-f", "json")
+    assert r.returncode == 0
+    out = json.loads(r.stdout)
+    assert out["reason"] == "until" and out["time"] == 60.0
+    assert "default bound" in out["message"]
+
+
+SLOW = """
+system slow {
+  agent a {
+    control c @ 1 Hz {
+      memory k: int = 0
+      output v: int to e.fast blocking
+      behaviour tick {
+        update v { v := k }
+        update memory { k := k + 1 }
+        terminal never when false
+      }
+      initial tick
+    }
+    effector fast @ 100 Hz {
+      input v: int from c blocking
+      memory last: int = 0
+      behaviour take {
+        update memory { last := v }
+        terminal never when false
+      }
+      initial take
+    }
+  }
+}
+"""
 
 
 def test_replay_of_a_verifier_report(tmp_path: Path) -> None:

@@ -1,0 +1,68 @@
+"""Stalled subsystems: a subsystem that completes no iteration for a while although the run
+goes on (simulated time advances because other subsystems or devices keep ticking). A global
+deadlock stops the run by itself (nothing can fire, E805); a partial one does not: two
+controllers that wait for each other on blocking channels freeze while their effectors and
+devices run on, and without this watch the run would go on to its bound and report success.
+
+A subsystem is *stalled* when its iteration count (the paper's discrete time stamp i) has not
+changed for ``periods`` periods of the slowest paced subsystem or device of the system. The
+slowest period, not the subsystem's own: a 100 Hz consumer that receives, blocking, from a
+1 Hz producer waits a whole second for each value, which is the system's rhythm and not a
+stall. A subsystem that has ended (switched to `end`) is not watched. Simulated time only
+advances at ticks, so a system with no frequency at all cannot stall this way (it deadlocks
+or stands still: E805, E808).
+
+The run stops with E809, which names each stalled subsystem, its behaviour, and what it
+waits for (the places its next transition misses: a buffer of a peer, with its span).
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+from typing import TYPE_CHECKING
+
+if TYPE_CHECKING:   # the command line reads STALL_PERIODS without loading the interpreter
+    from rssm_dsl.interp.program import Runtime
+    from rssm_dsl.interp.state import SubsystemState
+
+STALL_PERIODS = 5      # default of `rssmc simulate --stall-periods`
+
+
+@dataclass
+class Stall:
+    subsystem: SubsystemState
+    since: int          # ns: when its last iteration ended (or the run started)
+
+
+class Watchdog:
+    """Checks every half slowest period (of simulated or wall-clock time) which subsystems
+    have stopped completing iterations."""
+
+    def __init__(self, rt: Runtime, periods: int) -> None:
+        self.rt = rt
+        tickers = [s.ticker for s in rt.subsystems.values() if s.ticker is not None]
+        tickers += [d.ticker for d in rt.devices.values() if d.ticker is not None]
+        self.reference = max((t.period for t in tickers), default=0)   # ns
+        self.periods = periods
+        self.active = periods > 0 and self.reference > 0
+        self.limit = periods * self.reference
+        self.step = max(1, self.reference // 2)
+        self.next_check = self.step
+        self.seen: dict[str, tuple[int, int]] = {
+            sid: (s.i, 0) for sid, s in rt.subsystems.items()}   # (i, since when)
+
+    def due(self, now: int) -> bool:
+        return self.active and now >= self.next_check
+
+    def stalls(self, now: int) -> list[Stall]:
+        """The subsystems stalled at ``now`` (and the next check is set)."""
+        self.next_check = now + self.step
+        out: list[Stall] = []
+        for sid, s in self.rt.subsystems.items():
+            i, since = self.seen[sid]
+            if s.i != i:
+                self.seen[sid] = (s.i, now)
+                continue
+            if not s.ended and now - since >= self.limit:
+                out.append(Stall(s, since))
+        return out
