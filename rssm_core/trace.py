@@ -29,6 +29,7 @@ event.
 | interpreter | receive   | subsystem, buffer, channel, value, place, span                      |
 | interpreter | error     | code, message, span, subsystem|null, place, handled                 |
 | interpreter | deadlock  | marking (place names), waiting (subsystem -> place)                 |
+| interpreter | stalled   | waiting (stalled subsystem -> the place it waits in; E809)          |
 | interpreter | end       | reason, message, problems, summary                                  |
 | node        | enter     | from (null), to, i, conditions                                      |
 | node        | switch    | from, to|null, i, conditions                                        |
@@ -309,6 +310,18 @@ class Deadlock(Event):
 
 
 @dataclass(frozen=True, kw_only=True)
+class Stalled(Event):
+    """Subsystems complete no iteration while the rest of the system runs on (interpreter,
+    E809): each stalled subsystem and the place it waits in."""
+
+    KIND = "stalled"
+    FIELDS = (_f("waiting", _NAMES), *_RUN)
+    waiting: dict[str, str]
+    step: int | None = None
+    time: float | None = None
+
+
+@dataclass(frozen=True, kw_only=True)
 class End(Event):
     """The last line of a run: why it ended and the final summary (interpreter)."""
 
@@ -397,7 +410,7 @@ class Other(Event):
 
 KINDS: dict[str, dict[str, type[Event]]] = {
     SOURCE_INTERPRETER: {c.KIND: c for c in (Start, Fire, Enter, Switch, Send, Receive, Error,
-                                             Deadlock, End)},
+                                             Deadlock, Stalled, End)},
     SOURCE_NODE: {c.KIND: c for c in (Start, NodeEnter, NodeSwitch, Iteration, NodeError)},
 }
 

@@ -31,6 +31,7 @@ from rssm_core.trace import (
     Other,
     Receive,
     Send,
+    Stalled,
     Start,
     Switch,
     TraceFormatError,
@@ -71,6 +72,7 @@ INTERPRETER_EVENTS: list[Event] = [
     Error(code="E802", message="boom", span="s.rssm:7:9", subsystem=None, place="p[1,c,2]",
           handled=False, step=12, time=0.25),
     Deadlock(marking=["p[1,c,in]"], waiting={"a1.c": "p[1,c,in]"}, step=12, time=0.25),
+    Stalled(waiting={"a1.c": "p[1,c,run,snd,1,wait]"}, step=40, time=1.0),
     End(reason="finished", message="the system finished", problems=[],
         summary={"steps": 12, "subsystems": []}, step=12, time=0.25),
     Other(name="behaviour", extra={"subsystem": "a1.c", "behaviour": "cw"}),
@@ -263,14 +265,16 @@ def _traced_run(tmp_path: Path, spec: Path, **options: Any) -> Path:
 
 def test_what_the_interpreter_writes_is_read_back_exactly(tmp_path: Path) -> None:
     """Real runs: behaviour switches and channel values (camera), handled operation failures
-    (faulty), a deadlock (handshake); every line is valid and typed, to_json gives it back."""
+    (faulty), a deadlock (handshake), a stall (starve); every line is valid and typed, to_json
+    gives it back."""
     for name in ("camera_tracker.rssm", "camera.csv"):
         shutil.copy(EXAMPLES / name, tmp_path / name)
     shutil.copytree(SPECS, tmp_path / "specs")
     paths = [_traced_run(tmp_path, tmp_path / "camera_tracker.rssm", until=1.5),
              _traced_run(tmp_path, tmp_path / "specs" / "faulty.rssm", max_steps=100_000),
              _traced_run(tmp_path, tmp_path / "specs" / "handshake_deadlock.rssm",
-                         max_steps=10_000)]
+                         max_steps=10_000),
+             _traced_run(tmp_path, tmp_path / "specs" / "starve.rssm", until=10.0)]
     kinds: set[type[Event]] = set()
     for path in paths:
         trace = read_trace(path)
@@ -280,9 +284,9 @@ def test_what_the_interpreter_writes_is_read_back_exactly(tmp_path: Path) -> Non
         assert trace.source == SOURCE_INTERPRETER and trace.header.seed == 1
         assert isinstance(trace.events[-1], End)
         assert all(isinstance(e, Start | Fire | Enter | Switch | Send | Receive | Error
-                              | Deadlock | End) for e in trace.events)
+                              | Deadlock | Stalled | End) for e in trace.events)
         kinds.update(type(e) for e in trace.events)
-    assert kinds == {Start, Fire, Enter, Switch, Send, Receive, Error, Deadlock, End}
+    assert kinds == {Start, Fire, Enter, Switch, Send, Receive, Error, Deadlock, Stalled, End}
 
 
 @pytest.mark.parametrize("text", [
