@@ -6,6 +6,7 @@ COMMANDS: tuple[str, ...] = (
     "compile",
     "verify",
     "simulate",
+    "plot",
     "run",
     "render",
     "fmt",

@@ -27,8 +27,10 @@ DEFAULT_UNTIL = 60.0    # seconds: the bound of a run given none (a system may n
 
 if TYPE_CHECKING:
     from rssm_dsl.diagnostics import Diagnostic
+    from rssm_dsl.interp import RunConfig
     from rssm_dsl.interp.program import Runtime
     from rssm_dsl.interp.replay import Counterexample, ReplayVerdict
+    from rssm_dsl.interp.sampler import Sampler
     from rssm_dsl.interp.scheduler import RunResult
     from rssm_dsl.interp.summary import Snapshot
     from rssm_dsl.pipeline import Compilation
@@ -104,6 +106,18 @@ def simulate(
         "--device-option", help="An option of a device: ID:KEY=VALUE (repeatable; ID may be "
                                 "a pattern).")] = None,
     workers: Annotated[int, typer.Option(min=1, help="Worker threads (concurrent mode).")] = 4,
+    select: Annotated[list[str] | None, typer.Option(
+        "--select", help="A series to record for --series/--plot: SUBSYSTEM.VARIABLE (a "
+                         "memory variable, parameter or buffer; .field and [k] for a "
+                         "component) or SUBSYSTEM.behaviour; shell patterns allowed; "
+                         "repeatable. Default: every behaviour and numeric memory "
+                         "variable.")] = None,
+    series: Annotated[Path | None, typer.Option(
+        "--series", help="Write the selected series to this .npz file (rssmc plot draws "
+                         "it).")] = None,
+    plot: Annotated[Path | None, typer.Option(
+        "--plot", help="Draw the selected series against time to this .png or .svg "
+                       "(needs the 'run' extra).")] = None,
     stall_periods: Annotated[int, typer.Option(
         "--stall-periods", min=0,
         help="Stop (E809, exit 3) when a subsystem completes no iteration for this many "
@@ -138,8 +152,20 @@ def simulate(
         except typer.BadParameter as e:
             typer.echo(f"rssmc: {e.message}", err=True)
             return EXIT_USAGE
+        if plot is not None:
+            from rssm_dsl.extras import missing_message
+
+            absent = missing_message("rssmc simulate --plot", "run")
+            if absent is not None:
+                typer.echo(absent, err=True)
+                return EXIT_USAGE
+            if plot.suffix.lower() not in (".png", ".svg"):
+                typer.echo(f"rssmc: --plot {plot}: the figure is written as .png or .svg",
+                           err=True)
+                return EXIT_USAGE
         return _simulate(file, steps, until, mode, seed, trace, replay, devices, options,
-                         workers, live, format, quiet, not all_interleavings, stall_periods)
+                         workers, live, format, quiet, not all_interleavings, stall_periods,
+                         _Record(select, series, plot))
 
     guarded(run)
 
@@ -148,9 +174,8 @@ def _simulate(file: Path, steps: int | None, until: float | None, mode: str, see
               trace: Path | None, replay: Path | None, devices: dict[str, str],
               options: dict[str, dict[str, str]], workers: int, live: bool | None,
               fmt: Format, quiet: bool, eager: bool = True,
-              stall_periods: int = STALL_PERIODS) -> int:
-    from rssm_dsl.interp import RunConfig, SimOptions, Simulator, build_runtime
-    from rssm_dsl.interp.errors import SetupError
+              stall_periods: int = STALL_PERIODS, record: _Record | None = None) -> int:
+    from rssm_dsl.interp import RunConfig, SimOptions, Simulator
     from rssm_dsl.interp.replay import judge
     from rssm_dsl.interp.trace import TraceWriter
     from rssm_dsl.pipeline import compile_file
@@ -168,13 +193,8 @@ def _simulate(file: Path, steps: int | None, until: float | None, mode: str, see
 
     config = RunConfig(base_dir=file.resolve().parent, devices=devices, device_options=options,
                        wall_clock=mode == "concurrent")
-    try:
-        rt = build_runtime(comp, config)
-    except SetupError as e:
-        _show(comp, e.diagnostics, fmt)
-        if fmt is Format.json:
-            typer.echo(json.dumps({"reason": "setup", "diagnostics":
-                                   [d.to_json() for d in e.diagnostics]}, indent=2))
+    rt = _runtime(comp, config, fmt)
+    if rt is None:
         return EXIT_ERRORS
 
     cx, forced = None, None
@@ -185,6 +205,11 @@ def _simulate(file: Path, steps: int | None, until: float | None, mode: str, see
             return loaded
         cx, forced = loaded
 
+    sampler = record.attach(rt) if record is not None else None
+    if isinstance(sampler, str):
+        typer.echo(sampler, err=True)
+        rt.close_devices()
+        return EXIT_USAGE
     tracer = TraceWriter(trace) if trace is not None else None
     rt.tracer = tracer
     show_live = (sys.stderr.isatty() if live is None else live) and not quiet \
@@ -212,6 +237,19 @@ def _simulate(file: Path, steps: int | None, until: float | None, mode: str, see
     diags = list(result.diagnostics)
     if verdict is not None:
         diags = [d for d in verdict.diagnostics if d not in diags] + diags
+    if sampler is not None and record is not None:
+        failed = record.save(comp.system.name, sampler.series(), quiet)
+        if failed is not None:
+            typer.echo(failed, err=True)
+            return EXIT_ERRORS
+    return _report_run(file, comp, result, diags, verdict, cx, bounded, fmt, quiet,
+                       tracer.count if tracer is not None else None, trace)
+
+
+def _report_run(file: Path, comp: Compilation, result: RunResult, diags: list[Diagnostic],
+                verdict: ReplayVerdict | None, cx: Counterexample | None, bounded: bool,
+                fmt: Format, quiet: bool, traced: int | None, trace: Path | None) -> int:
+    """Print the result of a run; its exit code."""
     if not bounded and result.reason == "until":
         result.message += (" (the default bound: pass --until or --steps to run longer or "
                            "shorter)")
@@ -220,9 +258,67 @@ def _simulate(file: Path, steps: int | None, until: float | None, mode: str, see
     else:
         _show(comp, diags, fmt)
         _print_text(file, result, verdict, quiet)
-        if tracer is not None and not quiet:
-            typer.echo(f"trace: {tracer.count} events written to {trace}", err=True)
+        if traced is not None and not quiet:
+            typer.echo(f"trace: {traced} events written to {trace}", err=True)
     return _exit_code(result, cx, verdict)
+
+
+def _runtime(comp: Compilation, config: RunConfig, fmt: Format) -> Runtime | None:
+    """The run's runtime, or None when it cannot be set up (the problems printed)."""
+    from rssm_dsl.interp import build_runtime
+    from rssm_dsl.interp.errors import SetupError
+
+    try:
+        return build_runtime(comp, config)
+    except SetupError as e:
+        _show(comp, e.diagnostics, fmt)
+        if fmt is Format.json:
+            typer.echo(json.dumps({"reason": "setup", "diagnostics":
+                                   [d.to_json() for d in e.diagnostics]}, indent=2))
+        return None
+
+
+class _Record:
+    """What to record of a run (--select) and where to put it (--series, --plot)."""
+
+    def __init__(self, select: list[str] | None, series: Path | None,
+                 plot: Path | None) -> None:
+        self.select = select or None
+        self.series = series
+        self.plot = plot
+
+    def attach(self, rt: Runtime) -> Sampler | str | None:
+        """The sampler of the run (before its Simulator is made), None when nothing is
+        recorded, or the usage error of --select."""
+        if self.series is None and self.plot is None:
+            return None
+        from rssm_dsl.interp.sampler import Sampler, SelectionError
+
+        try:
+            sampler = Sampler(rt, self.select)
+        except SelectionError as e:
+            return f"rssmc: {e}"
+        sampler.attach()
+        return sampler
+
+    def save(self, system: str, series: list[Any], quiet: bool) -> str | None:
+        """Write the series file and the figure; the problem, or None."""
+        from rssm_core.series import write_series
+
+        if self.series is not None:
+            write_series(self.series, system, series)
+            if not quiet:
+                typer.echo(f"series: {len(series)} written to {self.series}", err=True)
+        if self.plot is not None:
+            from rssm_dsl.run.series_plot import PlotError, draw
+
+            try:
+                draw(system, series, self.plot)
+            except PlotError as e:
+                return f"rssmc: --plot: {e}"
+            if not quiet:
+                typer.echo(f"plot: {self.plot}", err=True)
+        return None
 
 
 def _show(comp: Compilation, diags: list[Diagnostic], fmt: Format) -> None:

@@ -1,8 +1,8 @@
 """The realistic specifications of examples/verify/: they compile clean, simulate,
 and the buggy handover's two control subsystems freeze in a simulation while the corrected
 one's keep going: the simulation stops there with E809 naming both (with the stall watch
-off, it runs on and shows the effectors and devices still running). Their verdicts: tests/verify/test_slicing.py; time to verdict:
-bench/verify_realistic.py."""
+off, it runs on and shows the effectors and devices still running). Their verdicts:
+tests/verify/test_slicing.py; time to verdict: bench/verify_realistic.py."""
 
 from __future__ import annotations
 

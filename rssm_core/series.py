@@ -1,0 +1,84 @@
+"""Series of a run, defined once: values of chosen variables over time, stored by column.
+
+A trace (trace.py) records every firing, so its size grows with the firings; a *series file*
+records only what a user chose to look at, one sample per iteration of the subsystem that
+owns it, so its size grows with the series times their samples. It is a NumPy ``.npz``
+archive (compressed) with these arrays:
+
+| key        | shape, dtype          | what                                                   |
+|------------|-----------------------|--------------------------------------------------------|
+| ``meta``   | () str (JSON)         | ``{"format": 1, "system": NAME, "series": [S, ...]}``  |
+| ``t<k>``   | (n_k,) float64        | sample times of series k, seconds                      |
+| ``v<k>``   | (n_k,) float64        | its values: the number, or the index into ``labels``   |
+
+Each ``S`` is ``{"name", "subsystem", "kind", "labels"}``: ``name`` is the user's
+(``a1.c.phase``, ``a1.e.arm.cmd.x``, ``a1.c.q[2]``, ``a1.c.behaviour``), ``kind`` is
+``"number"`` (bool, int, float, range: one component) or ``"category"`` (the active
+behaviour, an enum: ``v`` indexes ``labels``). A vector or record value is stored as one
+series per component. :func:`write_series` writes a file, :func:`read_series` reads one back.
+"""
+
+from __future__ import annotations
+
+import json
+from dataclasses import dataclass, field
+from pathlib import Path
+from typing import Any
+
+SERIES_FORMAT = 1
+
+
+class SeriesFormatError(Exception):
+    """A file that is not a series file of this format."""
+
+
+@dataclass
+class Series:
+    name: str
+    subsystem: str
+    kind: str                              # "number" | "category"
+    labels: list[str] = field(default_factory=list)
+    t: list[float] | Any = field(default_factory=list)     # list while recording, array read
+    v: list[float] | Any = field(default_factory=list)
+
+    def label_index(self, label: str) -> int:
+        if label not in self.labels:
+            self.labels.append(label)
+        return self.labels.index(label)
+
+
+def write_series(path: Path, system: str, series: list[Series]) -> None:
+    """Write the series to ``path`` (``.npz``); the file appears whole or not at all."""
+    import numpy as np
+
+    meta = {"format": SERIES_FORMAT, "system": system,
+            "series": [{"name": s.name, "subsystem": s.subsystem, "kind": s.kind,
+                        "labels": s.labels} for s in series]}
+    arrays: dict[str, Any] = {"meta": np.array(json.dumps(meta))}
+    for k, s in enumerate(series):
+        arrays[f"t{k}"] = np.asarray(s.t, dtype=np.float64)
+        arrays[f"v{k}"] = np.asarray(s.v, dtype=np.float64)
+    part = path.with_name(path.name + ".part")
+    with part.open("wb") as f:
+        np.savez_compressed(f, **arrays)
+    part.replace(path)
+
+
+def read_series(path: Path) -> tuple[str, list[Series]]:
+    """The system's name and its series, as written by :func:`write_series`."""
+    import numpy as np
+
+    try:
+        with np.load(path, allow_pickle=False) as data:
+            meta = json.loads(str(data["meta"]))
+            if meta.get("format") != SERIES_FORMAT:
+                raise SeriesFormatError(f"series format {meta.get('format')!r}, not "
+                                        f"{SERIES_FORMAT}")
+            out = [Series(s["name"], s["subsystem"], s["kind"], list(s["labels"]),
+                          data[f"t{k}"], data[f"v{k}"])
+                   for k, s in enumerate(meta["series"])]
+            return str(meta["system"]), out
+    except SeriesFormatError:
+        raise
+    except (OSError, ValueError, KeyError, TypeError, json.JSONDecodeError) as e:
+        raise SeriesFormatError(f"not a series file: {e}") from None
