@@ -47,8 +47,10 @@ class Series:
         return self.labels.index(label)
 
 
-def write_series(path: Path, system: str, series: list[Series]) -> None:
-    """Write the series to ``path`` (``.npz``); the file appears whole or not at all."""
+def encode_series(system: str, series: list[Series]) -> bytes:
+    """The series file of ``series`` (the bytes of a ``.npz``)."""
+    import io
+
     import numpy as np
 
     meta = {"format": SERIES_FORMAT, "system": system,
@@ -58,10 +60,14 @@ def write_series(path: Path, system: str, series: list[Series]) -> None:
     for k, s in enumerate(series):
         arrays[f"t{k}"] = np.asarray(s.t, dtype=np.float64)
         arrays[f"v{k}"] = np.asarray(s.v, dtype=np.float64)
-    part = path.with_name(path.name + ".part")
-    with part.open("wb") as f:
-        np.savez_compressed(f, **arrays)
-    part.replace(path)
+    out = io.BytesIO()
+    np.savez_compressed(out, **arrays)
+    return out.getvalue()
+
+
+def write_series(path: Path, system: str, series: list[Series]) -> None:
+    """Write the series to ``path`` (``.npz``)."""
+    path.write_bytes(encode_series(system, series))
 
 
 def read_series(path: Path) -> tuple[str, list[Series]]:

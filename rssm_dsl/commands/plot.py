@@ -34,6 +34,10 @@ def plot(
             return EXIT_USAGE
         from rssm_dsl.run.series_plot import PlotError, draw
 
+        if output.suffix.lower() not in (".png", ".svg"):
+            typer.echo(f"rssmc: -o {output}: the figure is written as .png or .svg", err=True)
+            return EXIT_USAGE
+
         try:
             system, series = read_series(file)
         except SeriesFormatError as e:

@@ -303,10 +303,12 @@ class _Record:
 
     def save(self, system: str, series: list[Any], quiet: bool) -> str | None:
         """Write the series file and the figure; the problem, or None."""
-        from rssm_core.series import write_series
+        from rssm_core.series import encode_series
+        from rssm_dsl.emit.write import write_outputs
 
         if self.series is not None:
-            write_series(self.series, system, series)
+            write_outputs(self.series.parent,
+                          {self.series.name: encode_series(system, series)})
             if not quiet:
                 typer.echo(f"series: {len(series)} written to {self.series}", err=True)
         if self.plot is not None:

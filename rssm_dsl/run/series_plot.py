@@ -36,11 +36,20 @@ def rows_of(series: list[Series]) -> list[tuple[str, list[Series]]]:
 
 def draw(system: str, series: list[Series], out: Path, dpi: int = 110) -> None:
     """Write the figure to ``out`` (.png or .svg); whole or not at all."""
+    from rssm_dsl.emit.write import write_outputs
+
+    write_outputs(out.parent, {out.name: figure(system, series, out.suffix, dpi)})
+
+
+def figure(system: str, series: list[Series], suffix: str, dpi: int = 110) -> bytes:
+    """The figure of ``series`` as a .png or .svg file's bytes."""
+    import io
+
     from matplotlib.backends.backend_agg import FigureCanvasAgg
     from matplotlib.figure import Figure
 
-    if out.suffix.lower() not in (".png", ".svg"):
-        raise PlotError(f"{out.name}: the figure is written as .png or .svg")
+    if suffix.lower() not in (".png", ".svg"):
+        raise PlotError(f"a figure is written as .png or .svg, not {suffix or 'no suffix'}")
     rows = rows_of([s for s in series if len(s.t)])
     if not rows:
         raise PlotError("no samples to draw: the selected subsystems completed no iteration")
@@ -65,6 +74,6 @@ def draw(system: str, series: list[Series], out: Path, dpi: int = 110) -> None:
         if len(group) > 1 and len(group) <= 12:
             ax.legend(fontsize=7, loc="upper right", ncol=min(len(group), 6))
     axes[-1].set_xlabel("time (s)")
-    part = out.with_name(out.name + ".part")
-    fig.savefig(part, format=out.suffix.lower()[1:], dpi=dpi)
-    part.replace(out)
+    data = io.BytesIO()
+    fig.savefig(data, format=suffix.lower()[1:], dpi=dpi)
+    return data.getvalue()
