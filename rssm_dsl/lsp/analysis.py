@@ -22,9 +22,10 @@ from pathlib import Path
 
 from rssm_dsl.diagnostics import Diagnostic, DiagnosticBag, Severity
 from rssm_dsl.lsp.incremental import Reparsed, ShiftMap, State, map_diagnostic, map_module, reparse
-from rssm_dsl.lsp.index import Occurrence, SymbolIndex, build_index
+from rssm_dsl.lsp.index import Occurrence, SymbolIndex, build_index, system_id
 from rssm_dsl.lsp.paths import path_of_display
 from rssm_dsl.lsp.positions import LineIndex
+from rssm_dsl.lsp.reindex import AgentEdit, reindex
 from rssm_dsl.pipeline import compile_file
 from rssm_dsl.semantics.analyze import AgentMemo, analyze
 from rssm_dsl.semantics.loader import (
@@ -41,6 +42,7 @@ log = logging.getLogger("rssmc.lsp")
 
 # Larger texts are not analyzed live (the compiler itself accepts up to 8 MB).
 MAX_LIVE_CHARS = 2_000_000
+MAX_REINDEX = 64       # agent edits applied to the last index built, at most (then: all)
 SYNTAX_CODES = frozenset({"E005", "E006", "E007", "E008", "E013"})
 
 
@@ -66,12 +68,24 @@ class LazyIndex:
     # after an incremental analysis: the index of an earlier text whose declarations outside
     # the system are the same (an incremental analysis reparses one agent only)
     outside_from: LazyIndex | None = None
+    # after an incremental analysis: the last index built before it, and the agent edits
+    # since, to make this one from it (rssm_dsl.lsp.reindex)
+    base: LazyIndex | None = None
+    edits: tuple[AgentEdit, ...] = ()
     value: SymbolIndex | None = None
     lock: threading.Lock = field(default_factory=threading.Lock, repr=False)
 
     @property
     def ready(self) -> bool:
         return self.value is not None
+
+    def after(self, edit: AgentEdit) -> tuple[LazyIndex | None, tuple[AgentEdit, ...]]:
+        """What the index of the text after `edit` (an edit of this text) is made from."""
+        if self.value is not None:
+            return self, (edit,)
+        if self.base is not None and len(self.edits) < MAX_REINDEX:
+            return self.base, (*self.edits, edit)
+        return None, ()
 
     def outside(self) -> SymbolIndex | None:
         """An index whose definitions outside the system (types, record fields, enum
@@ -85,6 +99,10 @@ class LazyIndex:
 
     def get(self) -> SymbolIndex:
         with self.lock:
+            if self.value is None and self.base is not None and self.shifts is not None:
+                with _no_gc():
+                    self.value = self._reindexed(self.base, self.shifts.display)
+                self.base, self.edits = None, ()
             if self.value is None:
                 if self.program is not None:
                     with _no_gc():
@@ -99,6 +117,15 @@ class LazyIndex:
             return self.value
 
 
+    def _reindexed(self, base: LazyIndex, display: str) -> SymbolIndex | None:
+        index = base.value
+        for edit in self.edits:
+            if index is None:
+                break
+            index = reindex(index, edit, display)
+        return index
+
+
 def _map_index(ix: SymbolIndex, shifts: ShiftMap) -> SymbolIndex:
     out = SymbolIndex()
     for key, d in ix.definitions.items():
@@ -111,11 +138,28 @@ def _map_index(ix: SymbolIndex, shifts: ShiftMap) -> SymbolIndex:
     for occs in out.occurrences.values():
         occs.sort(key=lambda o: (o.span.offset, o.span.end_offset))
     out.scopes = [(shifts.span(span), scope) for span, scope in ix.scopes]
+    out.links = dict(ix.links)
     return out
 
 
 def _same_span(span: Span) -> Span:
     return span
+
+
+@dataclass(frozen=True)
+class ModuleView:
+    """An AST (maybe a part) and the cursor in its positions: a real offset is
+    `delta` more than the offset of the same place in the view."""
+
+    module: ast.Module | None
+    offset: int
+    delta: int
+
+    def real(self, start: int, end: int) -> tuple[int, int]:
+        return start + self.delta, end + self.delta
+
+    def local(self, offset: int) -> int:
+        return offset - self.delta
 
 
 @dataclass
@@ -143,6 +187,28 @@ class LazyModule:
             if self.value is not None or self.stale is None or self.shifts is None:
                 return (self.value if self.value is not None else self.stale), _same_span
             return self.stale, self.shifts.span
+
+    def view_at(self, offset: int) -> ModuleView:
+        """What a query at the real offset `offset` reads of the AST. When the mapped AST is
+        not built (after an incremental analysis) and the offset is inside an agent: that
+        agent alone in its system, its spans stale but all moved by the same amount (an
+        edit reparses one agent: nothing inside another moves apart), so the query needs
+        neither the whole AST mapped nor more than one span converted."""
+        with self.lock:
+            stale, shifts = self.stale, self.shifts
+            if self.value is not None or stale is None or shifts is None:
+                return ModuleView(self.value if self.value is not None else stale, offset, 0)
+        systems = [d for d in stale.decls if isinstance(d, ast.SystemDecl)]
+        if len(systems) == 1:
+            sd = systems[0]
+            for agent in sd.agents:
+                real = shifts.span(agent.span)
+                if real.offset <= offset <= real.end_offset:
+                    delta = real.offset - agent.span.offset
+                    alone = replace(sd, agents=(agent,))
+                    module = ast.Module(stale.span, stale.path, stale.imports, (alone,))
+                    return ModuleView(module, offset - delta, delta)
+        return ModuleView(self.get(), offset, 0)
 
     def get(self) -> ast.Module | None:
         with self.lock:
@@ -367,6 +433,10 @@ def _incremental(uri: str, path: Path, display: str, text: str, version: int | N
                  previous_index: LazyIndex) -> Analysis | None:
     """The analysis of a reparsed text, or None when the whole text must be analysed (an
     error of the loader's checks stops the compiler before the semantic passes)."""
+    edit = AgentEdit(got.program, got.system,
+                     f"agent:{system_id(got.system)}/{got.replaced.name}", got.agent,
+                     got.state.shifts, got.chars, got.lines)
+    base, edits = previous_index.after(edit)
     loader = _loader_checks(got.state.module, display, text, got.state.shifts)
     if any(d.severity is Severity.ERROR for d in loader):
         return None
@@ -399,7 +469,8 @@ def _incremental(uri: str, path: Path, display: str, text: str, version: int | N
     return Analysis(
         uri, version, path, display, text, lines, LazyModule(got.state.module, shifts),
         got.program, tuple(mine), LazyIndex(got.program, shifts=shifts, outside_from=(
-            previous_index if previous_index.ready else previous_index.outside_from)),
+            previous_index if previous_index.ready else previous_index.outside_from),
+            base=base, edits=edits),
         system if system is not None else kept_system, got.state,
         "incremental",
     )

@@ -114,6 +114,11 @@ class State:
 class Reparsed:
     state: State
     program: Program
+    system: ast.SystemDecl        # of the new text
+    replaced: ast.AgentDecl       # the agent reparsed, as it was
+    agent: ast.AgentDecl          # and as it is (stale spans of its own pseudo-file)
+    chars: int                    # what the text after the agent moved by
+    lines: int
 
 
 _NOT_BREAK = re.compile(r"[^\r\n]+")
@@ -199,7 +204,8 @@ def reparse(state: State, text: str, display: str,
     program = Program(root=module, modules=modules, sources=sources,
                       imports=dict(prog.imports))
     return Reparsed(State(text, module, new_shifts, program, state.steps + 1, broken,
-                          state.memo), program)
+                          state.memo), program, system, replaced, frame.agents[0], d_chars,
+                    d_lines)
 
 
 def _common_ends(old: str, text: str) -> tuple[int, int]:

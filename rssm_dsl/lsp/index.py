@@ -247,9 +247,13 @@ def _buffer_detail(b: ast.BufferDecl) -> str:
 
 
 class IndexBuilder:
-    def __init__(self, program: Program) -> None:
+    def __init__(self, program: Program, only_agent: ast.AgentDecl | None = None,
+                 known: dict[str, Definition] | None = None) -> None:
+        """`only_agent`: index the declarations and uses of that agent alone (its peers
+        are looked up in `known`, the definitions of the rest of the program)."""
         self.program = program
-        self.index = SymbolIndex()
+        self.only_agent = only_agent
+        self.index = SymbolIndex(definitions=dict(known) if known is not None else {})
         self.globals: dict[str, str] = {}           # global name -> key
         self.device_types: dict[str, ast.DeviceDecl] = {}
         # what the record fields of an expression's value need: declared types by name,
@@ -280,7 +284,10 @@ class IndexBuilder:
         for m in modules:
             self._globals(m)
         for m in modules:
-            self._module(m)
+            if self.only_agent is not None:
+                self._only_agent_uses(m, self.only_agent)
+            else:
+                self._module(m)
         for occs in self.index.occurrences.values():
             occs.sort(key=lambda o: (o.span.offset, o.span.end_offset))
         return self.index
@@ -346,9 +353,7 @@ class IndexBuilder:
                                                "device parameter", p.name_span, p.span,
                                                f"param {p.name}: {_type_text(p.type)}", key))
                 case ast.SystemDecl():
-                    self.define(Definition(f"system:{system_id(d)}", d.name, "system", d.name_span,
-                                           d.span, f"system {d.name}"))
-                    self._structure(d)
+                    self._system(d)
             name = getattr(d, "name", None)
             if isinstance(name, str) and not isinstance(d, ast.SystemDecl):
                 prefix = {ast.RecordDecl: "type", ast.AliasDecl: "type", ast.EnumDecl: "type",
@@ -356,54 +361,66 @@ class IndexBuilder:
                           ast.ExternDecl: "extern", ast.DeviceDecl: "device"}[type(d)]
                 self.globals.setdefault(name, f"{prefix}:{name}")
 
+    def _system(self, sd: ast.SystemDecl) -> None:
+        if self.only_agent is None:
+            self.define(Definition(f"system:{system_id(sd)}", sd.name, "system", sd.name_span,
+                                   sd.span, f"system {sd.name}"))
+            self._structure(sd)
+        elif any(x is self.only_agent for x in sd.agents):
+            self._agent_structure(sd, self.only_agent)
+
     def _structure(self, sd: ast.SystemDecl) -> None:
         """Declarations inside the system: agents, subsystems, instances, their members."""
         for a in sd.agents:
-            akey = f"agent:{system_id(sd)}/{a.name}"
-            self.define(Definition(akey, a.name, "agent", a.name_span, a.span,
-                                   f"agent {a.name}", f"system:{system_id(sd)}"))
-            for s in a.subsystems:
-                skey = subsystem_key(system_id(sd), a.name, s)
-                named = s.kind is not ast.SubsystemKind.CONTROL or s.name_span != s.span
-                head = f"{s.kind.value} {s.name}" if s.kind is not ast.SubsystemKind.CONTROL \
-                    else f"control {s.name}"
-                self.define(Definition(skey, s.name, f"{s.kind.value} subsystem", s.name_span,
-                                       s.span, head, akey,
-                                       renameable=s.kind is not ast.SubsystemKind.CONTROL
-                                       and named))
-                for b in s.buffers:
-                    self.declared.setdefault(f"buf:{skey[4:]}.{b.name}", b.type)
-                    self.define(Definition(f"buf:{skey[4:]}.{b.name}", b.name,
-                                           f"{b.direction.value} buffer", b.name_span, b.span,
-                                           _buffer_detail(b), skey))
-                for mem in s.memory:
-                    self.declared.setdefault(f"mem:{skey[4:]}.{mem.name}", mem.type)
-                    self.define(Definition(f"mem:{skey[4:]}.{mem.name}", mem.name, "memory",
-                                           mem.name_span, mem.span,
-                                           f"memory {mem.name}: {_type_text(mem.type)}", skey))
-                for p in s.params:
-                    self.declared.setdefault(f"param:{skey[4:]}.{p.name}", p.type)
-                    self.define(Definition(f"param:{skey[4:]}.{p.name}", p.name, "parameter",
-                                           p.name_span, p.span,
-                                           f"param {p.name}: {_type_text(p.type)}", skey))
-                for bd in s.behaviours:
-                    bkey = f"beh:{skey[4:]}.{bd.name}"
-                    self.define(Definition(bkey, bd.name, "behaviour", bd.name_span, bd.span,
-                                           f"behaviour {bd.name}", skey))
-                    for c in bd.conditions:
-                        self.define(Definition(f"cond:{bkey[4:]}.{c.name}", c.name,
-                                               f"{c.kind} condition", c.name_span, c.span,
-                                               f"{c.kind} {c.name}", bkey))
-            for inst in a.devices:
-                self.define(Definition(instance_key(system_id(sd), a.name, inst), inst.name,
-                                       f"real {inst.kind.value}", inst.name_span, inst.span,
-                                       f"real {inst.kind.value} {inst.name}: {inst.device}",
-                                       akey))
+            self._agent_structure(sd, a)
         from rssm_dsl.syntax.printer import property_text
         for prop in sd.properties:
             self.define(Definition(f"prop:{system_id(sd)}/{prop.name}", prop.name, "property",
                                    prop.name_span, prop.span, property_text(prop),
                                    f"system:{system_id(sd)}"))
+
+    def _agent_structure(self, sd: ast.SystemDecl, a: ast.AgentDecl) -> None:
+        """The declarations of one agent: its own, its subsystems', its instances'."""
+        akey = f"agent:{system_id(sd)}/{a.name}"
+        self.define(Definition(akey, a.name, "agent", a.name_span, a.span,
+                               f"agent {a.name}", f"system:{system_id(sd)}"))
+        for s in a.subsystems:
+            skey = subsystem_key(system_id(sd), a.name, s)
+            named = s.kind is not ast.SubsystemKind.CONTROL or s.name_span != s.span
+            head = f"{s.kind.value} {s.name}" if s.kind is not ast.SubsystemKind.CONTROL \
+                else f"control {s.name}"
+            self.define(Definition(skey, s.name, f"{s.kind.value} subsystem", s.name_span,
+                                   s.span, head, akey,
+                                   renameable=s.kind is not ast.SubsystemKind.CONTROL
+                                   and named))
+            for b in s.buffers:
+                self.declared.setdefault(f"buf:{skey[4:]}.{b.name}", b.type)
+                self.define(Definition(f"buf:{skey[4:]}.{b.name}", b.name,
+                                       f"{b.direction.value} buffer", b.name_span, b.span,
+                                       _buffer_detail(b), skey))
+            for mem in s.memory:
+                self.declared.setdefault(f"mem:{skey[4:]}.{mem.name}", mem.type)
+                self.define(Definition(f"mem:{skey[4:]}.{mem.name}", mem.name, "memory",
+                                       mem.name_span, mem.span,
+                                       f"memory {mem.name}: {_type_text(mem.type)}", skey))
+            for p in s.params:
+                self.declared.setdefault(f"param:{skey[4:]}.{p.name}", p.type)
+                self.define(Definition(f"param:{skey[4:]}.{p.name}", p.name, "parameter",
+                                       p.name_span, p.span,
+                                       f"param {p.name}: {_type_text(p.type)}", skey))
+            for bd in s.behaviours:
+                bkey = f"beh:{skey[4:]}.{bd.name}"
+                self.define(Definition(bkey, bd.name, "behaviour", bd.name_span, bd.span,
+                                       f"behaviour {bd.name}", skey))
+                for c in bd.conditions:
+                    self.define(Definition(f"cond:{bkey[4:]}.{c.name}", c.name,
+                                           f"{c.kind} condition", c.name_span, c.span,
+                                           f"{c.kind} {c.name}", bkey))
+        for inst in a.devices:
+            self.define(Definition(instance_key(system_id(sd), a.name, inst), inst.name,
+                                   f"real {inst.kind.value}", inst.name_span, inst.span,
+                                   f"real {inst.kind.value} {inst.name}: {inst.device}",
+                                   akey))
 
     # ------------------------------------------------------------------ uses
     def _module(self, m: ast.Module) -> None:
@@ -433,6 +450,11 @@ class IndexBuilder:
                     for prop in d.properties:
                         for e in prop.expressions:
                             self._property_expr(d, e)
+
+    def _only_agent_uses(self, m: ast.Module, agent: ast.AgentDecl) -> None:
+        for d in m.decls:
+            if isinstance(d, ast.SystemDecl) and any(x is agent for x in d.agents):
+                self._agent(d, agent, None)
 
     def _device(self, d: ast.DeviceDecl) -> None:
         scope = {p.name: f"devparam:{d.name}.{p.name}" for p in d.params}

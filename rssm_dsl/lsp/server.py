@@ -50,7 +50,7 @@ from pygls.protocol.json_rpc import (
 from rssm_dsl import __version__
 from rssm_dsl.lsp import framing
 from rssm_dsl.lsp.actions import Fixer
-from rssm_dsl.lsp.analysis import Analysis, analyze_text
+from rssm_dsl.lsp.analysis import Analysis, ModuleView, analyze_text
 from rssm_dsl.lsp.completion import complete
 from rssm_dsl.lsp.convert import SOURCE, to_lsp
 from rssm_dsl.lsp.documents import use_lsp_lines
@@ -450,6 +450,14 @@ class RssmServer(LanguageServer):
             await run_job(lambda: (a.lazy_module.get(), a.lazy_index.get()), "rssm-index")
         return a
 
+    async def with_index(self, uri: str) -> Analysis | None:
+        """The current analysis, with its symbol index built (in a job's thread); its AST
+        is read through `LazyModule.view_at`, which needs nothing built."""
+        a = await self.current(uri)
+        if a is not None and not a.lazy_index.ready:
+            await run_job(a.lazy_index.get, "rssm-index")
+        return a
+
     async def ensure_index(self, a: Analysis) -> None:
         if not a.lazy_index.ready:
             await run_job(a.lazy_index.get, "rssm-index")
@@ -644,31 +652,32 @@ def did_close(ls: RssmServer, params: lsp.DidCloseTextDocumentParams) -> None:
 # ---------------------------------------------------------------------- features
 @server.feature(lsp.TEXT_DOCUMENT_HOVER)
 async def hover(ls: RssmServer, params: lsp.HoverParams) -> lsp.Hover | None:
-    a = await ls.indexed(params.text_document.uri)
+    a = await ls.with_index(params.text_document.uri)
     if a is None or not a.analyzable:
         return None
     from rssm_dsl.lsp.hover import field_hover
     from rssm_dsl.lsp.scope import env_of, field_at, field_span, local_type
 
     offset = a.lines.offset(params.position, ls.encoding)
-    text = _update_hover(a, offset)
+    view = a.lazy_module.view_at(offset)
+    text = _update_hover(a, view)
     occ = a.index.at(a.display, offset)
     env = env_of(a.program)
     rng: lsp.Range | None = None
     if text is None and occ is not None:
         d = a.index.definitions.get(occ.key)
         if d is not None:
-            local = local_type(env, a.module, d.name, d.full.offset) \
-                if d.key.startswith("local:") and a.module is not None else None
+            local = local_type(env, view.module, d.name, view.local(d.full.offset)) \
+                if d.key.startswith("local:") and view.module is not None else None
             text = hover_text(d, a.system, env=env, local=local)
             rng = a.lines.range(occ.span, ls.encoding)
-    elif text is None and a.module is not None:     # `x.field`, x a record
-        found = field_at(env, a.module, offset)
+    elif text is None and view.module is not None:     # `x.field`, x a record
+        found = field_at(env, view.module, view.offset)
         if found is not None:
             x, record = found
             text = field_hover(a.index.definitions.get(f"field:{record.name}.{x.field}"),
                                record, x.field)
-            start, end = field_span(x)
+            start, end = view.real(*field_span(x))
             rng = a.lines.range(Span(a.display, 1, 1, 1, 1, start, end), ls.encoding)
     if text is None:
         return None
@@ -676,8 +685,8 @@ async def hover(ls: RssmServer, params: lsp.HoverParams) -> lsp.Hover | None:
                      range=rng)
 
 
-def _update_hover(a: Analysis, offset: int) -> str | None:
-    module = a.module
+def _update_hover(a: Analysis, view: ModuleView) -> str | None:
+    module = view.module
     if module is None:
         return None
     for d in module.decls:
@@ -688,7 +697,7 @@ def _update_hover(a: Analysis, offset: int) -> str | None:
                 for bd in s.behaviours:
                     for u in bd.updates:
                         t = u.target_span
-                        if t.offset <= offset <= t.end_offset:
+                        if t.offset <= view.offset <= t.end_offset:
                             key = f"beh:{subsystem_key(system_id(d), ag.name, s)[4:]}.{bd.name}"
                             beh = a.index.definitions.get(key)
                             if beh is None:
@@ -697,19 +706,25 @@ def _update_hover(a: Analysis, offset: int) -> str | None:
     return None
 
 
-@server.feature(lsp.TEXT_DOCUMENT_DEFINITION)
-async def definition(ls: RssmServer, params: lsp.DefinitionParams) -> list[lsp.Location] | None:
-    a = await ls.indexed(params.text_document.uri)
-    if a is None or not a.analyzable:
-        return None
+def _field_key(a: Analysis, offset: int) -> str | None:
+    """The key of the record field whose name is under the cursor (`x.field`)."""
     from rssm_dsl.lsp.scope import env_of, field_at
 
+    view = a.lazy_module.view_at(offset)
+    if view.module is None:
+        return None
+    found = field_at(env_of(a.program), view.module, view.offset)
+    return f"field:{found[1].name}.{found[0].field}" if found is not None else None
+
+
+@server.feature(lsp.TEXT_DOCUMENT_DEFINITION)
+async def definition(ls: RssmServer, params: lsp.DefinitionParams) -> list[lsp.Location] | None:
+    a = await ls.with_index(params.text_document.uri)
+    if a is None or not a.analyzable:
+        return None
     occ = ls.occurrence(a, params.position)
-    key = occ.key if occ is not None else None
-    if key is None and a.module is not None:    # `x.field`, x a record
-        found = field_at(env_of(a.program), a.module,
-                         a.lines.offset(params.position, ls.encoding))
-        key = f"field:{found[1].name}.{found[0].field}" if found is not None else None
+    key = occ.key if occ is not None else \
+        _field_key(a, a.lines.offset(params.position, ls.encoding))
     d = a.index.definitions.get(key) if key is not None else None
     if d is None:
         return None
@@ -722,14 +737,11 @@ async def references(ls: RssmServer, params: lsp.ReferenceParams) -> list[lsp.Lo
     a = await ls.indexed(params.text_document.uri)
     if a is None or not a.analyzable:
         return None
-    from rssm_dsl.lsp.scope import env_of, field_at, field_uses
+    from rssm_dsl.lsp.scope import env_of, field_uses
 
     occ = ls.occurrence(a, params.position)
-    key = occ.key if occ is not None else None
-    if key is None and a.module is not None:    # `x.field`, x a record
-        found = field_at(env_of(a.program), a.module,
-                         a.lines.offset(params.position, ls.encoding))
-        key = f"field:{found[1].name}.{found[0].field}" if found is not None else None
+    key = occ.key if occ is not None else \
+        _field_key(a, a.lines.offset(params.position, ls.encoding))
     if key is None:
         return None
     include = params.context.include_declaration

@@ -5,15 +5,18 @@ from __future__ import annotations
 
 import random
 import re
+from dataclasses import replace
 from pathlib import Path
 from typing import Any
 
 import pytest
-from hypothesis import given, settings
+from hypothesis import given, note, settings
 from hypothesis import strategies as st
 from lsprotocol import types as lsp
 
-from rssm_dsl.lsp.analysis import SYNTAX_CODES, Analysis, analyze_text
+from rssm_dsl.lsp.analysis import SYNTAX_CODES, Analysis, LazyIndex, analyze_text
+from rssm_dsl.lsp.index import SymbolIndex
+from rssm_dsl.lsp.reindex import reindex
 from rssm_dsl.lsp.symbols import document_symbols
 from rssm_dsl.semantics.loader import display_path
 from rssm_dsl.syntax import ast
@@ -99,6 +102,137 @@ def test_incremental_analysis_equals_a_full_one(seed: int, tmp_path_factory: obj
         if step.how == "incremental":
             assert _occurrences(step) == _occurrences(full)
         previous = step
+
+
+def _declarations(index: SymbolIndex) -> dict[str, tuple[str, str, str, str | None, bool]]:
+    return {k: (d.name, d.kind, d.detail, d.container, d.renameable)
+            for k, d in index.definitions.items() if not k.startswith("local:")}
+
+
+def _same_index(a: SymbolIndex, b: SymbolIndex) -> bool:
+    return (a.definitions == b.definitions and a.occurrences == b.occurrences
+            and a.scopes == b.scopes and a.links == b.links)
+
+
+@settings(max_examples=25, deadline=None)
+@given(seed=st.integers(0, 2**32 - 1))
+def test_the_index_after_an_edit_is_the_previous_one_with_one_agent_indexed_again(
+        seed: int) -> None:
+    """The index of an incrementally analysed text is made from the previous text's index
+    by indexing the edited agent again (rssm_dsl/lsp/reindex.py). Whenever that is done it
+    equals the index built from scratch (every definition, occurrence, scope and link, at
+    real positions, local values too). In a text without syntax errors it is refused only
+    when a declaration's key, kind, type or container changed (the index is built from
+    scratch then)."""
+    rng = random.Random(seed)
+    path = Path("/tmp/rssm-incremental-test/reindex.rssm")
+    shown = display_path(path)
+    text = spec(5).replace("agent a5 {", "agent a5 {\n    real receptor other: LWR4Plus\n", 1)
+    previous = analyze_text("file:///reindex", path, shown, text, 1, {}, None)
+    derived = 0
+    for version in range(2, 10):
+        old_index = previous.index
+        was_broken = any(d.code in SYNTAX_CODES for d in previous.diagnostics)
+        text = _edit(text, rng)
+        step = analyze_text("file:///reindex", path, shown, text, version, {}, previous)
+        previous = step
+        if step.how != "incremental":
+            continue
+        assert step.lazy_index.base is not None
+        [edit] = step.lazy_index.edits
+        whole = LazyIndex(step.program, shifts=step.lazy_index.shifts).get()
+        got = reindex(old_index, edit, shown)
+        broken = was_broken or any(d.code in SYNTAX_CODES for d in step.diagnostics)
+        if _declarations(old_index) == _declarations(whole) and not broken:
+            assert got is not None
+        if got is not None:
+            derived += 1
+            assert _same_index(got, whole)
+            assert _same_index(step.index, whole)
+    note(f"{derived} indexes made from the previous one")
+
+
+def test_an_edit_that_keeps_the_declarations_indexes_one_agent_again(
+        monkeypatch: pytest.MonkeyPatch) -> None:
+    """A value changed in agent a2: the index is the previous one with a2 indexed again,
+    not built from scratch; a memory variable added to a3: built from scratch."""
+    import rssm_dsl.lsp.analysis as analysis_module
+
+    built: list[int] = []
+    real = analysis_module.build_index
+
+    def counting(program: Any) -> SymbolIndex:
+        built.append(1)
+        return real(program)
+
+    monkeypatch.setattr(analysis_module, "build_index", counting)
+    path = Path("/tmp/rssm-incremental-test/keeps.rssm")
+    shown = display_path(path)
+    text = spec(4)
+    a = analyze_text("file:///keeps", path, shown, text, 1, {}, None)
+    assert a.index is not None and len(built) == 1
+    at = text.index("agent a2 {")
+    t2 = text[:at] + text[at:].replace("float = 0.05", "float = 0.07", 1)
+    b = analyze_text("file:///keeps", path, shown, t2, 2, {}, a)
+    assert b.how == "incremental" and b.index is not None and len(built) == 1
+    at = t2.index("agent a3 {")
+    t3 = t2[:at] + t2[at:].replace("memory phase: float = 0.0",
+                                   "memory phase: float = 0.0\n      memory turns: int = 0", 1)
+    c = analyze_text("file:///keeps", path, shown, t3, 3, {}, b)
+    assert c.how == "incremental" and c.index is not None and len(built) == 2
+    assert any(k.endswith("a3.c.turns") for k in c.index.definitions)
+
+
+def test_a_query_inside_an_agent_reads_that_agent_without_mapping_the_ast() -> None:
+    """After an incremental analysis, `view_at` gives the agent under the cursor with its
+    stale spans and the one shift that makes them real: every update target, field access
+    and declaration name of the mapped AST is found in the view at the same place."""
+    path = Path("/tmp/rssm-incremental-test/view.rssm")
+    shown = display_path(path)
+    text = spec(4)
+    a = analyze_text("file:///view", path, shown, text, 1, {}, None)
+    at = text.index("agent a2 {")
+    t2 = text[:at] + text[at:].replace("memory phase", "// one more line\n      memory phase", 1)
+    b = analyze_text("file:///view", path, shown, t2, 2, {}, a)
+    assert b.how == "incremental"
+    at = t2.index("agent a3 {")
+    t3 = t2[:at] + t2[at:].replace("float = 0.05", "float = 0.075", 1)
+    c = analyze_text("file:///view", path, shown, t3, 3, {}, b)
+    assert c.how == "incremental" and not c.lazy_module.ready
+
+    def places(agent: ast.AgentDecl) -> list[tuple[str, int]]:
+        found = [(s.name, s.name_span.offset) for s in agent.subsystems]
+        for s in agent.subsystems:
+            found += [(b.name, b.name_span.offset) for b in s.buffers]
+            for bd in s.behaviours:
+                found += [(u.target, u.target_span.offset) for u in bd.updates]
+        return found
+
+    views = [(agent, c.lazy_module.view_at(offset))
+             for agent, offset in [(ag, ag.span.offset + k) for ag in _agents(c)
+                                   for k in (1, 40, 200)]]
+    mapped = c.module
+    assert mapped is not None and c.lazy_module.ready
+    real_agents = {ag.name: ag for ag in _agents_of(mapped)}
+    for agent, view in views:
+        assert view.module is not None
+        [alone] = _agents_of(view.module)
+        assert alone.name == agent.name
+        assert [(n, o + view.delta) for n, o in places(alone)] == \
+            places(real_agents[agent.name])
+    # outside every agent: the whole AST
+    assert c.lazy_module.view_at(0).delta == 0
+
+
+def _agents_of(module: ast.Module) -> list[ast.AgentDecl]:
+    return [ag for d in module.decls if isinstance(d, ast.SystemDecl) for ag in d.agents]
+
+
+def _agents(a: Analysis) -> list[ast.AgentDecl]:
+    """The agents of an analysis at real positions (mapped from the stale AST once)."""
+    module, real = a.lazy_module.outline_view()
+    assert module is not None
+    return [replace(ag, span=real(ag.span)) for ag in _agents_of(module)]
 
 
 def test_edits_inside_an_agent_are_reparsed_alone() -> None:

@@ -10,6 +10,7 @@ import pytest_asyncio
 from lsprotocol import types as lsp
 from pytest_lsp import LanguageClient
 
+from rssm_dsl.lsp.positions import LineIndex
 from tests.lsp.helpers import ROOT, apply_edits, close, open_doc, position_of
 from tests.lsp.specs import GOOD
 
@@ -232,3 +233,57 @@ async def test_rename_across_files(client: LanguageClient, tmp_path: Path) -> No
     assert apply_edits(lib_text, list(edit.changes[lib.as_uri()])) == lib_text.replace(
         "record Gain ", "record Gains ")
     close(client, main)
+
+
+async def _hovers(client: LanguageClient, path: Path, positions: list[lsp.Position]
+                  ) -> list[tuple[str, lsp.Range | None] | None]:
+    """Hovers at every position, all asked at once."""
+    import asyncio
+
+    got = await asyncio.gather(*(client.text_document_hover_async(lsp.HoverParams(
+        text_document=_id(path), position=pos)) for pos in positions))
+    return [None if h is None else (str(h.contents), h.range) for h in got]
+
+
+async def _definitions(client: LanguageClient, path: Path, positions: list[lsp.Position]
+                       ) -> list[object]:
+    import asyncio
+
+    return list(await asyncio.gather(*(client.text_document_definition_async(
+        lsp.DefinitionParams(text_document=_id(path), position=pos)) for pos in positions)))
+
+
+async def test_hover_and_definition_right_after_an_edit_are_those_of_the_whole_text(
+        client: LanguageClient, tmp_path: Path) -> None:
+    """Asked with the edit (answered from the agent under the cursor, before anything is
+    built at idle time, and an index made from the previous one), hover and go to
+    definition give what they give once the whole edited text is analysed from scratch,
+    everywhere (agent a3, after the edited a2, first: its positions moved)."""
+    import re
+
+    from tests.lsp.helpers import change, diagnostics_of
+    from tests.lsp.test_incremental import spec
+
+    text = spec(3)
+    path = tmp_path / "edited.rssm"
+    await open_doc(client, path, text)
+    at = text.index("agent a2 {")
+    edited = text[:at] + text[at:].replace("memory phase", "// a note\n      memory phase", 1)
+    lines = LineIndex(edited)
+    start = edited.index("system many")
+    a3 = edited.index("agent a3 {")
+    positions = [lines.position(start + m.start() + 1, "utf-16")
+                 for m in sorted(re.finditer(r"\b[A-Za-z_]\w*", edited[start:]),
+                                 key=lambda m: start + m.start() < a3)[::2]]
+    change(client, path, edited, 2)
+    after_edit = await _hovers(client, path, positions)
+    await diagnostics_of(client, path.as_uri(), 2)
+    change(client, path, text, 3)
+    change(client, path, edited, 4)
+    defs_after_edit = await _definitions(client, path, positions)
+    close(client, path)
+    await open_doc(client, path, edited, 5)
+    assert await _hovers(client, path, positions) == after_edit
+    assert await _definitions(client, path, positions) == defs_after_edit
+    assert sum(h is not None for h in after_edit) > 50
+    close(client, path)
