@@ -26,6 +26,7 @@ from rssm_dsl.lsp.index import Occurrence, SymbolIndex, build_index, system_id
 from rssm_dsl.lsp.paths import path_of_display
 from rssm_dsl.lsp.positions import LineIndex
 from rssm_dsl.lsp.reindex import AgentEdit, reindex
+from rssm_dsl.lsp.symbols import AgentOutlines
 from rssm_dsl.pipeline import compile_file
 from rssm_dsl.semantics.analyze import AgentMemo, analyze
 from rssm_dsl.semantics.loader import (
@@ -240,6 +241,10 @@ class Analysis:
     outlines: dict[str, str] = field(default_factory=dict, compare=False, repr=False)
     outline_lock: threading.Lock = field(default_factory=threading.Lock, compare=False,
                                          repr=False)
+    # the agents outlined for the document's texts so far, by encoding (shared by its
+    # analyses: an incremental analysis keeps the AST of the agents it did not reparse)
+    agent_outlines: dict[str, AgentOutlines] = field(default_factory=dict, compare=False,
+                                                     repr=False)
 
     @property
     def module(self) -> ast.Module | None:
@@ -320,6 +325,14 @@ def _is_library(module: ast.Module | None) -> bool:
 def analyze_text(uri: str, path: Path, display: str, text: str, version: int | None,
                  overrides: dict[Path, str], previous: Analysis | None) -> Analysis:
     """Analyze one document's text; never raises on bad input."""
+    got = _analyze_text(uri, path, display, text, version, overrides, previous)
+    if previous is not None:
+        got = replace(got, agent_outlines=previous.agent_outlines)
+    return got
+
+
+def _analyze_text(uri: str, path: Path, display: str, text: str, version: int | None,
+                  overrides: dict[Path, str], previous: Analysis | None) -> Analysis:
     lines = LineIndex(text)
     kept_system = previous.system if previous is not None else None
     if "\x00" in text:

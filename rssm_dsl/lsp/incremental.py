@@ -108,6 +108,7 @@ class State:
     broken: tuple[tuple[ast.AgentDecl, tuple[Diagnostic, ...]], ...] = ()
     # the semantic passes' work on each agent, reused for the agents an edit left alone
     memo: AgentMemo = dataclasses.field(default_factory=AgentMemo)
+    masked: str | None = None     # _mask(text), once made
 
 
 @dataclass(frozen=True)
@@ -173,7 +174,10 @@ def reparse(state: State, text: str, display: str,
     new_close = close + d_chars
     if not _next_line_follows(text, new_close):
         return None
-    masked = _masked_frame(sd, shifts, old, text, chunk_start, new_close, d_chars)
+    # the whole text blanked, from the old one's: only the edited part is blanked anew
+    blank_old = state.masked if state.masked is not None else _mask(old)
+    blank = blank_old[:a] + _mask(text[a:len(text) - b]) + blank_old[len(old) - b:]
+    masked = _masked_frame(sd, shifts, old, text, blank, chunk_start, new_close, d_chars)
     if masked is None:
         return None
     pseudo = f"{display}#{next(_serial)}"
@@ -204,7 +208,7 @@ def reparse(state: State, text: str, display: str,
     program = Program(root=module, modules=modules, sources=sources,
                       imports=dict(prog.imports))
     return Reparsed(State(text, module, new_shifts, program, state.steps + 1, broken,
-                          state.memo), program, system, replaced, frame.agents[0], d_chars,
+                          state.memo, blank), program, system, replaced, frame.agents[0], d_chars,
                     d_lines)
 
 
@@ -249,10 +253,11 @@ def _edited_agent(sd: ast.SystemDecl, shifts: ShiftMap, old: str, a: int,
     return None
 
 
-def _masked_frame(sd: ast.SystemDecl, shifts: ShiftMap, old: str, text: str, chunk_start: int,
-                  new_close: int, d_chars: int) -> str | None:
+def _masked_frame(sd: ast.SystemDecl, shifts: ShiftMap, old: str, text: str, blank: str,
+                  chunk_start: int, new_close: int, d_chars: int) -> str | None:
     """The new text with everything blanked but the system's frame (`system NAME {` ...
-    `}`) and the agent in [chunk_start, new_close), or None when the frame is not found."""
+    `}`) and the agent in [chunk_start, new_close), or None when the frame is not found
+    (`blank`: all of the new text blanked)."""
     sys_name = shifts.span(sd.name_span)
     sys_start = _keyword_before(old, "system", sys_name.offset)
     if sys_start is None:
@@ -263,9 +268,9 @@ def _masked_frame(sd: ast.SystemDecl, shifts: ShiftMap, old: str, text: str, chu
     if body <= 0 or not (body <= chunk_start < new_close <= sys_close) \
             or text[sys_close] != "}":
         return None
-    return (_mask(text[:sys_start]) + text[sys_start:body] + _mask(text[body:chunk_start])
-            + text[chunk_start:new_close] + _mask(text[new_close:sys_close]) + "}"
-            + _mask(text[sys_close + 1:]))
+    return (blank[:sys_start] + text[sys_start:body] + blank[body:chunk_start]
+            + text[chunk_start:new_close] + blank[new_close:sys_close] + "}"
+            + blank[sys_close + 1:])
 
 
 # ---------------------------------------------------------------------- mapping spans out

@@ -67,7 +67,7 @@ from rssm_dsl.lsp.index import (
 from rssm_dsl.lsp.jobs import Job, run_job
 from rssm_dsl.lsp.paths import is_stdlib, path_of_display, path_of_uri, uri_of_path
 from rssm_dsl.lsp.positions import UTF16, LineIndex
-from rssm_dsl.lsp.symbols import outline_values
+from rssm_dsl.lsp.symbols import outline_json
 from rssm_dsl.semantics.loader import display_path
 from rssm_dsl.source import Span
 from rssm_dsl.syntax import ast
@@ -351,18 +351,20 @@ class RssmServer(LanguageServer):
 
     def _warm(self, uri: str, a: Analysis) -> None:
         """Once the editor has been idle for WARM_SECONDS after publishing an analysis, build
-        its outline, its AST with real spans and its symbol index, so that hover and the
-        outline find them ready. Not at once: the requests that follow an edit at once
-        (completion) would share the processor with it. An edit stops it: the next analysis
-        makes them stale."""
-        if a.lazy_module.ready and a.lazy_index.ready:
+        its outline and its symbol index, so that hover and the outline find them ready
+        (and the next edit's index is made from this one). Not at once: the requests that
+        follow an edit at once (completion) would share the processor with it. An edit
+        stops it: the next analysis makes them stale. The AST with real spans is not built:
+        the requests made while typing read the agent under the cursor (view_at); the
+        others (references, rename, code actions) build it when asked."""
+        if a.lazy_index.ready and a.outlines.get(self.encoding) is not None:
             return
         self._cool(uri)
         encoding = self.encoding
 
         def build() -> object:
             outline(a, encoding)
-            return a.lazy_module.get(), a.lazy_index.get()
+            return a.lazy_index.get()
 
         def start() -> None:
             self.warm_timers.pop(uri, None)
@@ -787,7 +789,9 @@ def outline(a: Analysis, encoding: str) -> RawJson:
         got = a.outlines.get(encoding)
         if got is None:
             module, real = a.lazy_module.outline_view()
-            got = json.dumps(outline_values(module, a.lines, encoding, real))
+            got, outlined = outline_json(module, a.lines, encoding, real,
+                                         a.agent_outlines.get(encoding, {}))
+            a.agent_outlines[encoding] = outlined
             a.outlines[encoding] = got
     return RawJson(got)
 

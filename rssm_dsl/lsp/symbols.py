@@ -6,7 +6,10 @@ and send, on every request."""
 
 from __future__ import annotations
 
+import json
+import re
 from collections.abc import Callable, Iterable
+from dataclasses import dataclass
 from typing import Any, TypeVar
 
 from lsprotocol import types as lsp
@@ -31,14 +34,45 @@ def _same(span: Span) -> Span:
     return span
 
 
+@dataclass(frozen=True)
+class OutlinedAgent:
+    """An agent's DocumentSymbol in JSON, made when the agent's text (`source`) started on
+    line `line` at `character`."""
+
+    agent: ast.AgentDecl
+    line: int
+    character: int
+    source: str
+    text: str
+    symbols: int
+
+
+# the outlined agents of a document's last outline, by id() of their AST (an incremental
+# analysis keeps the AST of the agents it did not reparse)
+AgentOutlines = dict[int, OutlinedAgent]
+_LINE = re.compile(r'"line": (\d+)')
+_MARK = re.compile(r'"\\u0000(\d+)"')
+
+
+def _moved(text: str, lines: int) -> str:
+    """An outlined agent's JSON with every line number moved (an agent moves as a whole
+    when an edit elsewhere adds or removes lines: its columns stay)."""
+    return _LINE.sub(lambda m: f'"line": {int(m.group(1)) + lines}', text)
+
+
 class _Outline:
     def __init__(self, lines: LineIndex, encoding: str, file: str,
-                 real: Callable[[Span], Span]) -> None:
+                 real: Callable[[Span], Span], known: AgentOutlines | None = None) -> None:
         self.lines = lines
         self.encoding = encoding
         self.file = file
         self.real = real
         self.left = MAX_SYMBOLS
+        # with `known`: agents are outlined as JSON texts (reused from `known` when their
+        # AST is the same), left in the values as marks "\0N" for texts[N]
+        self.known = known
+        self.outlined: AgentOutlines = {}
+        self.texts: list[str] = []
 
     def each(self, items: Iterable[X], fn: Callable[[X], Symbol]) -> list[Symbol]:
         """fn of each item, while the outline has room."""
@@ -100,6 +134,27 @@ class _Outline:
                         f"{s.kind.value} subsystem{freq}", kids)
 
     def agent(self, a: ast.AgentDecl) -> Symbol:
+        if self.known is None:
+            return self.agent_symbol(a)
+        span = self.real(a.span)
+        line, character = self.lines.ends_of(span, self.encoding)[0]
+        source = self.lines.text[span.offset + self.lines.bom:span.end_offset + self.lines.bom]
+        hit = self.known.get(id(a))
+        if hit is not None and hit.agent is a and hit.symbols <= self.left \
+                and hit.character == character and hit.source == source:
+            self.left -= hit.symbols
+            got = hit if hit.line == line else OutlinedAgent(
+                a, line, character, source, _moved(hit.text, line - hit.line), hit.symbols)
+        else:
+            before = self.left
+            got = OutlinedAgent(a, line, character, source, json.dumps(self.agent_symbol(a)),
+                                before - self.left)
+        if self.left > 0:     # (not cut short by MAX_SYMBOLS)
+            self.outlined[id(a)] = got
+        self.texts.append(got.text)
+        return f"\0{len(self.texts) - 1}"      # type: ignore[return-value]
+
+    def agent_symbol(self, a: ast.AgentDecl) -> Symbol:
         kids = self.each(a.subsystems, self.subsystem)
         kids += self.each(a.devices, lambda d: self.sym(
             d.name, K.Object, d.span, d.name_span, f"real {d.kind.value}: {d.device}"))
@@ -150,6 +205,19 @@ def outline_values(module: ast.Module | None, lines: LineIndex, encoding: str,
         return []
     outline = _Outline(lines, encoding, module.path, real)
     return outline.each(module.decls, outline.decl)
+
+
+def outline_json(module: ast.Module | None, lines: LineIndex, encoding: str,
+                 real: Callable[[Span], Span], known: AgentOutlines
+                 ) -> tuple[str, AgentOutlines]:
+    """The outline in JSON, what outline_values gives, with the JSON of each agent that is
+    in `known` (the same AST, outlined for an earlier text in the same encoding) reused:
+    moved by whole lines if the agent moved. Also the outlined agents, for the next text."""
+    if module is None:
+        return "[]", {}
+    outline = _Outline(lines, encoding, module.path, real, known)
+    text = json.dumps(outline.each(module.decls, outline.decl))
+    return _MARK.sub(lambda m: outline.texts[int(m.group(1))], text), outline.outlined
 
 
 def document_symbols(module: ast.Module | None, lines: LineIndex, encoding: str,

@@ -9,6 +9,7 @@ from rssm_dsl.diagnostics import Diagnostic, DiagnosticBag, Related
 from rssm_dsl.semantics.behaviours import BehaviourPass
 from rssm_dsl.semantics.channels import ChannelPass
 from rssm_dsl.semantics.checks import CHECKS, CheckContext
+from rssm_dsl.semantics.checks.context import CheckCache
 from rssm_dsl.semantics.checks.usage import names_read
 from rssm_dsl.semantics.declarations import DeclarationPass, Globals
 from rssm_dsl.semantics.loader import Program
@@ -59,6 +60,7 @@ class AgentMemo:
 
     outside: tuple[ast.Decl, ...] = ()
     agents: dict[int, AgentWork] = field(default_factory=dict)   # by id(decl)
+    checks: CheckCache = field(default_factory=CheckCache)      # what the checks found
     lock: threading.Lock = field(default_factory=threading.Lock, repr=False)
 
     def reusable(self, outside: tuple[ast.Decl, ...]) -> dict[int, AgentWork]:
@@ -124,6 +126,7 @@ def analyze(program: Program, bag: DiagnosticBag, memo: AgentMemo | None = None
         for d in work.diagnostics:
             bag.add(d)
         works.append(work)
+    checks = CheckCache(memo.checks) if memo is not None and reusable else CheckCache()
     if memo is not None:
         memo.keep(outside, works)
     agent_shells = [w.shell for w in works]
@@ -166,7 +169,9 @@ def analyze(program: Program, bag: DiagnosticBag, memo: AgentMemo | None = None
     properties = check_properties(bag, system, sysdecl.properties, g.symbols(), sub_decls,
                                   property_reads)
     ctx = CheckContext(bag, system, sub_decls, written, read, unchecked, property_reads,
-                       root_file=root.span.file)
+                       root_file=root.span.file, cache=checks if memo is not None else None)
     for check in CHECKS:
         check(ctx)
+    if memo is not None:
+        memo.checks = checks
     return replace(system, properties=properties)

@@ -3,6 +3,7 @@ edits, the diagnostics, the outline and the symbol index are those of a full ana
 
 from __future__ import annotations
 
+import json
 import random
 import re
 from dataclasses import replace
@@ -17,7 +18,7 @@ from lsprotocol import types as lsp
 from rssm_dsl.lsp.analysis import SYNTAX_CODES, Analysis, LazyIndex, analyze_text
 from rssm_dsl.lsp.index import SymbolIndex
 from rssm_dsl.lsp.reindex import reindex
-from rssm_dsl.lsp.symbols import document_symbols
+from rssm_dsl.lsp.symbols import AgentOutlines, document_symbols, outline_json, outline_values
 from rssm_dsl.semantics.loader import display_path
 from rssm_dsl.syntax import ast
 from tests.lsp.specs import GOOD, MISSING_CASE
@@ -88,10 +89,16 @@ def test_incremental_analysis_equals_a_full_one(seed: int, tmp_path_factory: obj
     text = spec(5)
     previous = analyze_text("file:///many", path, shown, text, 1, {}, None)
     assert previous.how == "full" and [d[0] for d in _diags(previous)] == ["E501"]
+    known: dict[str, AgentOutlines] = {"utf-16": {}, "utf-8": {}}
     for version in range(2, 8):
         text = _edit(text, rng)
         step = analyze_text("file:///many", path, shown, text, version, {}, previous)
         full = analyze_text("file:///many", path, shown, text, version, {}, None)
+        for encoding in known:     # the outline sent: agents' JSON reused, moved
+            module, real = step.lazy_module.outline_view()
+            sent, known[encoding] = outline_json(module, step.lines, encoding, real,
+                                                 known[encoding])
+            assert json.loads(sent) == outline_values(module, step.lines, encoding, real)
         if any(d.code in SYNTAX_CODES for d in full.diagnostics):
             # the agent-local recovery may differ from the whole file's; both report it
             assert any(d.code in SYNTAX_CODES for d in step.diagnostics)
@@ -224,6 +231,29 @@ def test_a_query_inside_an_agent_reads_that_agent_without_mapping_the_ast() -> N
     assert c.lazy_module.view_at(0).delta == 0
 
 
+def test_the_outline_after_an_edit_reuses_the_json_of_the_other_agents() -> None:
+    """A line added in agent a2: the outline sent reuses a1's JSON as it was, a3's and
+    a4's moved one line down, and outlines a2 again; it is the outline made from scratch."""
+    path = Path("/tmp/rssm-incremental-test/outline.rssm")
+    shown = display_path(path)
+    text = spec(4)
+    a = analyze_text("file:///outline", path, shown, text, 1, {}, None)
+    sent, known = outline_json(a.module, a.lines, "utf-16", lambda s: s, {})
+    at = text.index("agent a2 {")
+    t2 = text[:at] + text[at:].replace("memory phase", "// a note\n      memory phase", 1)
+    b = analyze_text("file:///outline", path, shown, t2, 2, {}, a)
+    module, real = b.lazy_module.outline_view()
+    sent, now = outline_json(module, b.lines, "utf-16", real, known)
+    by_name = {x.agent.name: x for x in now.values()}
+    before = {x.agent.name: x for x in known.values()}
+    assert by_name["a1"] is before["a1"]
+    assert by_name["a2"].agent is not before["a2"].agent
+    for name in ("a3", "a4"):
+        assert by_name[name].agent is before[name].agent
+        assert by_name[name].line == before[name].line + 1
+    assert json.loads(sent) == outline_values(b.module, b.lines, "utf-16")
+
+
 def _agents_of(module: ast.Module) -> list[ast.AgentDecl]:
     return [ag for d in module.decls if isinstance(d, ast.SystemDecl) for ag in d.agents]
 
@@ -324,6 +354,51 @@ def test_the_semantic_passes_run_again_on_the_edited_agent_only(
     assert sorted(analysed) == ["a1", "a2", "a3", "a4"]
     assert "E201" in [d.code for d in c.diagnostics]
     assert _diags(c) == _diags(analyze_text("file:///memo", path, shown, t3, 3, {}, None))
+
+
+def test_the_checks_of_unchanged_agents_are_reused_and_those_of_the_edited_one_rerun(
+        monkeypatch: pytest.MonkeyPatch) -> None:
+    """Switch checks are kept per subsystem (CheckContext.reuse): an edit in a1 keeps a3's
+    W604 (overlapping switches) without checking a3 again; the same overlap written into
+    a2 is found there. Each time, the diagnostics are those of a full analysis."""
+    path = Path("/tmp/rssm-incremental-test/checks.rssm")
+    shown = display_path(path)
+    switch = "      switch ccw -> cw when full_circle\n"
+    overlap = switch + "      switch ccw -> ccw when full_circle\n"
+    text = spec(3)
+    at = text.index("agent a3 {")
+    text = text[:at] + text[at:].replace(switch, overlap, 1)
+
+    def w604(a: Analysis) -> list[int]:
+        return [d.span.line for d in a.diagnostics if d.code == "W604"]
+
+    import rssm_dsl.semantics.checks.switching as switching
+
+    checked: list[str] = []
+    real = switching._check_subsystem
+
+    def counting(ctx: Any, s: Any, unchecked: set[str]) -> None:
+        checked.append(s.agent)
+        real(ctx, s, unchecked)
+
+    monkeypatch.setattr(switching, "_check_subsystem", counting)
+    a = analyze_text("file:///checks", path, shown, text, 1, {}, None)
+    assert len(w604(a)) == 1 and set(checked) == {"a1", "a2", "a3"}
+    checked.clear()
+    at = text.index("agent a1 {")
+    t2 = text[:at] + text[at:].replace("memory phase", "// a\n      memory phase", 1)
+    b = analyze_text("file:///checks", path, shown, t2, 2, {}, a)
+    assert b.how == "incremental" and w604(b) == [w604(a)[0] + 1]
+    assert set(checked) == {"a1"}
+    assert _diags(b) == _diags(analyze_text("file:///checks", path, shown, t2, 2, {}, None))
+    at = t2.index("agent a2 {")
+    t3 = t2[:at] + t2[at:].replace(switch, overlap, 1)
+    c = analyze_text("file:///checks", path, shown, t3, 3, {}, b)
+    assert c.how == "incremental" and len(w604(c)) == 2
+    assert _diags(c) == _diags(analyze_text("file:///checks", path, shown, t3, 3, {}, None))
+    t4 = t3[:at] + t3[at:].replace(overlap, switch, 1)
+    d = analyze_text("file:///checks", path, shown, t4, 4, {}, c)
+    assert d.how == "incremental" and w604(d) == w604(b)
 
 
 def test_completion_needs_nothing_built_after_an_edit() -> None:

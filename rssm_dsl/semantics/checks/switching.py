@@ -265,10 +265,21 @@ def _check_reachability(ctx: CheckContext, s: Subsystem) -> None:
                          behaviour.span, "no switch chain from the initial behaviour leads to it")
 
 
+def _check_subsystem(ctx: CheckContext, s: Subsystem, unchecked: set[str]) -> None:
+    for b in s.behaviours:
+        if b.name not in unchecked:
+            _check_behaviour(ctx, s, b)
+    if not unchecked:  # a switch with errors: reachability is unknown
+        _check_reachability(ctx, s)
+
+
 def check_switching(ctx: CheckContext) -> None:
     for s in ctx.system.subsystems():
-        for b in s.behaviours:
-            if b.name not in ctx.unchecked.get(s.id, set()):
-                _check_behaviour(ctx, s, b)
-        if not ctx.unchecked.get(s.id):  # a switch with errors: reachability is unknown
-            _check_reachability(ctx, s)
+        unchecked = ctx.unchecked.get(s.id, set())
+
+        def check(c: CheckContext, s: Subsystem = s, unchecked: set[str] = unchecked) -> None:
+            _check_subsystem(c, s, unchecked)
+
+        # what it reads: its behaviours and switches (the same objects while its agent is
+        # unchanged), the enum types (the same while the declarations outside are)
+        ctx.reuse(("switching", s.id, s.behaviours, s.switches, unchecked), check)
