@@ -15,13 +15,16 @@ Each ``S`` is ``{"name", "subsystem", "kind", "labels"}``: ``name`` is the user'
 (``a1.c.phase``, ``a1.e.arm.cmd.x``, ``a1.c.q[2]``, ``a1.c.behaviour``), ``kind`` is
 ``"number"`` (bool, int, float, range: one component) or ``"category"`` (the active
 behaviour, an enum: ``v`` indexes ``labels``). A vector or record value is stored as one
-series per component. :func:`write_series` writes a file, :func:`read_series` reads one back.
+series per component. :func:`write_series` writes a file, :func:`read_series` reads one back,
+:func:`select_series` chooses series by name (shell patterns).
 """
 
 from __future__ import annotations
 
 import json
+from collections.abc import Sequence
 from dataclasses import dataclass, field
+from fnmatch import fnmatchcase
 from pathlib import Path
 from typing import Any
 
@@ -88,3 +91,17 @@ def read_series(path: Path) -> tuple[str, list[Series]]:
         raise
     except (OSError, ValueError, KeyError, TypeError, json.JSONDecodeError) as e:
         raise SeriesFormatError(f"not a series file: {e}") from None
+
+
+def matches(name: str, patterns: Sequence[str]) -> bool:
+    """A series name chosen by one of the shell patterns (``a1.c.*``, ``*.behaviour``,
+    ``a1.c.q[[]2]``), case-sensitive: what ``--select`` means."""
+    return any(fnmatchcase(name, p) for p in patterns)
+
+
+def select_series(series: list[Series], patterns: Sequence[str]) -> tuple[list[Series], list[str]]:
+    """The series chosen by ``patterns`` (see :func:`matches`), in file order, and the
+    patterns that choose none."""
+    chosen = [s for s in series if matches(s.name, patterns)]
+    unmatched = [p for p in patterns if not any(matches(s.name, [p]) for s in series)]
+    return chosen, unmatched

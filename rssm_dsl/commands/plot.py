@@ -2,7 +2,6 @@
 
 from __future__ import annotations
 
-from fnmatch import fnmatchcase
 from pathlib import Path
 from typing import Annotated
 
@@ -25,7 +24,7 @@ def plot(
     draw, 2 on usage errors."""
 
     def run() -> int:
-        from rssm_core.series import SeriesFormatError, read_series
+        from rssm_core.series import SeriesFormatError, read_series, select_series
         from rssm_dsl.extras import missing_message
 
         absent = missing_message("rssmc plot", "run")
@@ -44,13 +43,13 @@ def plot(
             typer.echo(f"rssmc: {file}: {e}", err=True)
             return EXIT_USAGE
         if select:
-            for p in select:
-                if not any(fnmatchcase(s.name, p) for s in series):
-                    names = ", ".join(s.name for s in series[:12])
-                    typer.echo(f"rssmc: --select {p} names no series of {file} (it has: "
-                               f"{names}{', ...' if len(series) > 12 else ''})", err=True)
-                    return EXIT_USAGE
-            series = [s for s in series if any(fnmatchcase(s.name, p) for p in select)]
+            chosen, unmatched = select_series(series, select)
+            if unmatched:
+                names = ", ".join(s.name for s in series[:12])
+                typer.echo(f"rssmc: --select {unmatched[0]} names no series of {file} (it "
+                           f"has: {names}{', ...' if len(series) > 12 else ''})", err=True)
+                return EXIT_USAGE
+            series = chosen
         try:
             draw(system, series, output)
         except PlotError as e:

@@ -3,12 +3,26 @@
 from __future__ import annotations
 
 from pathlib import Path
-from typing import Annotated
+from typing import TYPE_CHECKING, Annotated
 
 import typer
 
-from rssm_dsl.commands.common import EXIT_ERRORS, EXIT_OK, FileArg, Format, FormatOpt, QuietOpt, guarded, report
-from rssm_dsl.render import MAX_STEPS
+from rssm_dsl.commands.common import (
+    EXIT_ERRORS,
+    EXIT_OK,
+    EXIT_USAGE,
+    FileArg,
+    Format,
+    FormatOpt,
+    QuietOpt,
+    guarded,
+    report,
+)
+from rssm_dsl.render import MAX_STEPS, MAX_STEPS_LIMIT
+
+if TYPE_CHECKING:
+    from rssm_dsl.render.playback import Playback
+    from rssm_dsl.render.series import SeriesPanel
 
 
 def render_cmd(
@@ -24,14 +38,29 @@ def render_cmd(
         "--trace", help="A trace of `rssmc simulate` (JSON lines) or a verifier counterexample "
         "(JSON) to play back in the explorer; implies --html.", show_default=False)] = None,
     max_steps: Annotated[int, typer.Option(
-        "--max-steps", min=0, help="Play at most this many firings of the trace.")] = MAX_STEPS,
+        "--max-steps", min=0, max=MAX_STEPS_LIMIT,
+        help="Embed at most this many firings of the trace (a window of it).")] = MAX_STEPS,
+    from_step: Annotated[int | None, typer.Option(
+        "--from-step", min=0, help="The window of the trace starts at this step (the marking "
+        "after that many firings; 0: the initial marking).", show_default=False)] = None,
+    from_time: Annotated[float | None, typer.Option(
+        "--from-time", min=0.0, help="The window of the trace starts at its first firing at "
+        "or after this time (seconds).", show_default=False)] = None,
+    series: Annotated[Path | None, typer.Option(
+        "--series", help="A series file of `rssmc simulate --series` (.npz) to draw as "
+        "charts in the explorer, with a cursor at the time of the playback's step; implies "
+        "--html.", show_default=False)] = None,
+    select: Annotated[list[str] | None, typer.Option(
+        "--select", help="Draw only these series (names or shell patterns, e.g. 'a1.c.*'), "
+        "as for `rssmc plot`; repeatable.", show_default=False)] = None,
     format: FormatOpt = Format.text,
     quiet: QuietOpt = False,
 ) -> None:
     """Draw each page of the HPN as the paper draws it: fig-H.svg, fig-P_1.svg,
     fig-PB_1_lwr_move.svg, ... and index.html listing them (page id -> file). If Graphviz is
     not installed the explorer is written instead. Nothing is written when the specification
-    or the trace has errors."""
+    or the trace has errors. A trace longer than --max-steps is shown as a window of it
+    (--from-step, --from-time); --series adds the charts of a run's series."""
 
     def run() -> int:
         from dataclasses import replace
@@ -43,9 +72,14 @@ def render_cmd(
         from rssm_dsl.pipeline import compile_file
         from rssm_dsl.render.html import render_explorer, render_index
         from rssm_dsl.render.names import figure_files
-        from rssm_dsl.render.playback import load_playback
+        from rssm_dsl.render.playback import Window, WindowError, load_playback
+        from rssm_dsl.render.series import load_series
         from rssm_dsl.render.svg import GraphvizError, find_dot, render_svgs
 
+        usage = _usage(trace, series, select, from_step, from_time)
+        if usage is not None:
+            typer.echo(f"rssmc: {usage}", err=True)
+            return EXIT_USAGE
         comp = compile_file(file)
         if not comp.ok or comp.hpn is None:
             report(comp, format, quiet)
@@ -54,12 +88,18 @@ def render_cmd(
         bag = DiagnosticBag()
         at = hpn.pages[hpn.root].span
         net = flatten(hpn)
-        playback = load_playback(trace, net, bag, max_steps) if trace is not None else None
+        window = Window(from_step or 0, from_time, max_steps)
+        try:
+            playback = load_playback(trace, net, bag, window) if trace is not None else None
+        except WindowError as e:
+            typer.echo(f"rssmc: {e}", err=True)
+            return EXIT_USAGE
+        panel = load_series(series, hpn.system, bag, select) if series is not None else None
         if bag.has_errors:
             report(replace(comp, diagnostics=comp.diagnostics + tuple(bag.sorted())), format)
             return EXIT_ERRORS
 
-        want_html = html or trace is not None
+        want_html = html or trace is not None or series is not None
         files: dict[str, str] = {}
         figures: dict[str, str] = {}
         missing: str | None = "not asked for (--no-svg)" if not svg else None
@@ -84,7 +124,8 @@ def render_cmd(
         explorer = file_name(hpn.system, ".html") if want_html else None
         spec = str(file)
         if explorer is not None:
-            files[explorer] = render_explorer(hpn, net, comp.program, spec, figures, playback)
+            files[explorer] = render_explorer(hpn, net, comp.program, spec, figures, playback,
+                                              panel)
         files["index.html"] = render_index(hpn, spec, figures, explorer, missing)
         target = output if output is not None else Path("out") / file.stem / "render"
         write_outputs(target, files)
@@ -93,13 +134,37 @@ def render_cmd(
         if not quiet and format is Format.text:
             what = [f"{len(figures)} figures" if figures else "no figures", "index.html"]
             if explorer is not None:
-                what.append(explorer)
-                if playback is not None:
-                    what[-1] += f" (playback: {len(playback.steps)} firings)"
+                what.append(explorer + _contents(playback, panel))
             typer.echo(f"wrote {', '.join(what)} to {target}", err=True)
         return EXIT_ERRORS if bag.has_errors else EXIT_OK
 
     guarded(run)
+
+
+def _usage(trace: Path | None, series: Path | None, select: list[str] | None,
+           from_step: int | None, from_time: float | None) -> str | None:
+    """The usage error of the options, or None."""
+    if from_step is not None and from_time is not None:
+        return "--from-step and --from-time both choose where the window starts: give one"
+    if trace is None and (from_step is not None or from_time is not None):
+        return "--from-step and --from-time choose a window of the trace: give --trace"
+    if select and series is None:
+        return "--select chooses series of the file given with --series"
+    return None
+
+
+def _contents(playback: Playback | None, panel: SeriesPanel | None) -> str:
+    """What the explorer holds, for the summary line."""
+    parts = []
+    if playback is not None:
+        if playback.whole:
+            parts.append(f"playback: {len(playback.fired)} firings")
+        else:
+            parts.append(f"playback: steps {playback.first} to {playback.last} of "
+                         f"{playback.total} firings")
+    if panel is not None:
+        parts.append(f"{panel.series} series in {len(panel.charts)} charts")
+    return f" ({'; '.join(parts)})" if parts else ""
 
 
 def register(app: typer.Typer) -> None:

@@ -131,6 +131,10 @@ CODES: tuple[Code, ...] = (
     Code("E853", "trace-unknown-transition", _E, "a trace fires a transition the net lacks"),
     Code("E854", "trace-not-enabled", _E, "a trace fires a transition that is not enabled"),
     Code("W855", "trace-truncated", _W, "a trace longer than the explorer plays (--max-steps)"),
+    Code("E856", "series-unreadable", _E, "a series file that cannot be read (rssmc render --series)"),
+    Code("E857", "series-not-selected", _E, "a --select pattern chooses no series of the series file"),
+    Code("W858", "series-other-system", _W, "the series file was recorded from another system"),
+    Code("W859", "series-too-many", _W, "more series than the explorer draws: only the first are shown"),
     # ROS 2 packages (rssmc ros2)
     Code("E860", "not-a-ros-name", _E, "a name of the specification cannot become a ROS 2 or Python name"),
     Code("W861", "module-not-shipped", _W, "a binding's module is not shipped in the ROS 2 workspace"),

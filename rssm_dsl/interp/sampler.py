@@ -13,10 +13,9 @@ one, every subsystem's behaviour and every numeric component of its memory is ta
 from __future__ import annotations
 
 from collections.abc import Callable, Iterator
-from fnmatch import fnmatchcase
 from typing import Any
 
-from rssm_core.series import Series
+from rssm_core.series import Series, matches
 from rssm_dsl.hpn.ir import OpKind
 from rssm_dsl.interp.program import Runtime
 from rssm_dsl.interp.state import SubsystemState
@@ -92,11 +91,11 @@ class Sampler:
         self.rt = rt
         chosen = []
         for name, kind, owner, get, default in available(rt):
-            if (any(fnmatchcase(name, p) for p in patterns) if patterns else default):
+            if (matches(name, patterns) if patterns else default):
                 chosen.append((Series(name, owner.id, kind), owner, get))
         if patterns:
             for p in patterns:
-                if not any(fnmatchcase(s.name, p) for s, _, _ in chosen):
+                if not any(matches(s.name, [p]) for s, _, _ in chosen):
                     known = sorted({n.rsplit(".", 1)[0] for n, *_ in available(rt)})
                     raise SelectionError(f"--select {p} names no series; subsystems: "
                                          f"{', '.join(known)} (a series is SUBSYSTEM.VARIABLE"

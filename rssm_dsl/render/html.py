@@ -1,10 +1,12 @@
 """The HTML outputs of `rssmc render`: the self-contained explorer and the index of figures.
 
 The explorer is one file: the HPN IR (rssm_dsl/emit/json_ir.py), the flattened net's pre/post
-sets, the text of the specification files the IR points to and the playback markings are
-embedded as one JSON block; the vendored layout library (assets/dagre.min.js, from the npm
-package @dagrejs/dagre, see assets/package-lock.json and assets/vendor.sh) and the explorer's
-own script and style sheet are inlined. Nothing is fetched when the page is opened, and its
+sets, the text of the specification files the IR points to, the playback (a window of the
+firing sequence: transition indices and marking checkpoints, see playback.py) and the series
+of a run (decimated, see series.py) are embedded as one JSON block; the vendored layout
+library (assets/dagre.min.js, from the npm package @dagrejs/dagre, see
+assets/package-lock.json and assets/vendor.sh) and the explorer's own script and style sheet
+are inlined. Nothing is fetched when the page is opened, and its
 Content-Security-Policy forbids any fetch (scripts are allowed by hash only).
 
 User text never enters the markup: Jinja2 autoescapes every value, and the JSON block escapes
@@ -17,6 +19,7 @@ from __future__ import annotations
 import base64
 import hashlib
 import json
+import math
 from dataclasses import dataclass
 from importlib import resources
 from typing import Any
@@ -29,12 +32,13 @@ from rssm_dsl.emit.json_ir import to_json
 from rssm_dsl.emit.order import pages_in_order
 from rssm_dsl.hpn.flat import FlatNet
 from rssm_dsl.hpn.ir import HPN
-from rssm_dsl.render.playback import Playback
+from rssm_dsl.render.playback import WINDOW_HINT, Playback
+from rssm_dsl.render.series import SeriesPanel, panel_json
 from rssm_dsl.semantics.loader import Program
 from rssm_dsl.source import split_lines
 
 FORMAT = "rssmc-explorer"
-FORMAT_VERSION = 1
+FORMAT_VERSION = 2
 _JS_ESCAPES = {"<": "\\u003c", ">": "\\u003e", "&": "\\u0026",
                "\u2028": "\\u2028", "\u2029": "\\u2029"}
 
@@ -81,8 +85,12 @@ def _sha256(text: str) -> str:
 
 def _flat_json(net: FlatNet) -> dict[str, Any]:
     place_of = {origin: p.index for p in net.places for origin in p.origin}
+    names = [""] * len(net.transitions)
+    for t in net.transitions:
+        names[t.index] = t.name
     return {
         "places": [p.name for p in net.places],
+        "names": names,                # transition index -> name (the playback's indices)
         "place_of": place_of,
         "transitions": {t.name: {"pre": list(t.pre), "post": list(t.post)}
                         for t in net.transitions},
@@ -91,12 +99,35 @@ def _flat_json(net: FlatNet) -> dict[str, Any]:
     }
 
 
+def _finite(t: float | None) -> float | None:
+    """A time JSON can hold (a trace may say NaN or Infinity; JSON.parse would refuse it)."""
+    return t if t is not None and math.isfinite(t) else None
+
+
+def _times_json(pb: Playback) -> dict[str, list[Any]] | None:
+    """The time of each window step as change points: from step k[i] on, the time is t[i]."""
+    if pb.start_time is None and all(t is None for t in pb.times):
+        return None
+    ks: list[int] = [0]
+    ts: list[float | None] = [_finite(pb.start_time)]
+    for k, time in enumerate(pb.times, start=1):
+        t = _finite(time)
+        if t != ts[-1]:
+            ks.append(k)
+            ts.append(t)
+    return {"k": ks, "t": ts}
+
+
 def _playback_json(pb: Playback | None) -> dict[str, Any] | None:
+    """The window of the firing sequence: the index of each fired transition, the whole
+    marking every `every` steps, and the times; the explorer fires the rest."""
     if pb is None:
         return None
-    return {"source": pb.source, "kind": pb.kind, "initial": list(pb.initial),
-            "steps": [{"transition": s.transition, "marking": list(s.marking),
-                       "unsafe": list(s.unsafe), "line": s.line} for s in pb.steps]}
+    return {"source": pb.source, "kind": pb.kind, "first": pb.first, "total": pb.total,
+            "whole": pb.whole, "every": pb.every, "fired": list(pb.fired),
+            "checkpoints": [list(c) for c in pb.checkpoints], "times": _times_json(pb),
+            "span": [_finite(t) for t in pb.span] if pb.span is not None else None,
+            "hint": None if pb.whole else WINDOW_HINT}
 
 
 def _sources(hpn: HPN, program: Program) -> dict[str, list[str]]:
@@ -110,7 +141,7 @@ def _sources(hpn: HPN, program: Program) -> dict[str, list[str]]:
 
 
 def explorer_data(hpn: HPN, net: FlatNet, program: Program, figures: dict[str, str],
-                  playback: Playback | None) -> dict[str, Any]:
+                  playback: Playback | None, series: SeriesPanel | None = None) -> dict[str, Any]:
     return {
         "format": FORMAT,
         "version": FORMAT_VERSION,
@@ -120,13 +151,15 @@ def explorer_data(hpn: HPN, net: FlatNet, program: Program, figures: dict[str, s
         "sources": _sources(hpn, program),
         "figures": figures,
         "playback": _playback_json(playback),
+        "series": panel_json(series),
     }
 
 
 def render_explorer(hpn: HPN, net: FlatNet, program: Program, spec: str,
-                    figures: dict[str, str], playback: Playback | None) -> str:
+                    figures: dict[str, str], playback: Playback | None,
+                    series: SeriesPanel | None = None) -> str:
     """The self-contained HTML explorer. `figures` maps page ids to SVG files written beside it
-    (empty when none were drawn)."""
+    (empty when none were drawn); `series`: the charts of a run's series, if any."""
     dagre = asset("dagre.min.js")
     explorer = asset("explorer.js")
     license_text = asset("LICENSE.dagre.txt")
@@ -135,7 +168,7 @@ def render_explorer(hpn: HPN, net: FlatNet, program: Program, spec: str,
     csp = ("default-src 'none'; "
            f"script-src {_sha256(dagre)} {_sha256(explorer)}; "
            "style-src 'unsafe-inline'; img-src data:; base-uri 'none'; form-action 'none'")
-    data = explorer_data(hpn, net, program, figures, playback)
+    data = explorer_data(hpn, net, program, figures, playback, series)
     return _env().get_template("explorer.html.j2").render(
         version=__version__, spec=spec, system=hpn.system, csp=csp,
         css=_inline(asset("explorer.css"), "style"),

@@ -6,12 +6,17 @@ from __future__ import annotations
 
 import json
 import shutil
+import subprocess
+import sys
 import tempfile
 from collections.abc import Iterator
 from contextlib import contextmanager
+from pathlib import Path
 from typing import Any
 
 import pytest
+
+ROOT = Path(__file__).resolve().parents[2]
 
 CHROMIUM = shutil.which("chromium") or shutil.which("chromium-browser")
 CHROMEDRIVER = shutil.which("chromedriver")
@@ -60,3 +65,32 @@ def requests(driver: Any) -> list[tuple[str, str]]:
 
 
 NETWORK_SCHEMES = ("http:", "https:", "ws:", "wss:", "ftp:")
+
+
+def rssmc(*args: str) -> subprocess.CompletedProcess[str]:
+    """Run rssmc from the repository's root."""
+    return subprocess.run([sys.executable, "-m", "rssm_dsl", *args], capture_output=True,
+                          text=True, cwd=ROOT, timeout=600, check=False)
+
+
+def render_explorer_file(spec: Path, out: Path, *extra: str) -> Path:
+    """`rssmc render SPEC -o OUT --no-svg --html EXTRA...`; the explorer written."""
+    done = rssmc("render", str(spec), "-o", str(out), "--no-svg", "--html", *extra)
+    assert done.returncode == 0, done.stderr
+    (html,) = [p for p in out.glob("*.html") if p.name != "index.html"]
+    return html
+
+
+def open_explorer(driver: Any, html: Path, timeout: float = 60) -> float:
+    """Open the explorer and wait until it says it is ready; the milliseconds it took from
+    the start of the navigation (its own performance.now() when ready)."""
+    from selenium.webdriver.support.ui import WebDriverWait
+
+    driver.get(html.as_uri())
+    WebDriverWait(driver, timeout).until(
+        lambda d: d.execute_script("return document.body.getAttribute('data-ready')") == "true")
+    return float(driver.execute_script("return document.body.getAttribute('data-ready-ms')"))
+
+
+def severe_console_errors(driver: Any) -> list[Any]:
+    return [e for e in driver.get_log("browser") if e["level"] == "SEVERE"]

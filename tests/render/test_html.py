@@ -109,7 +109,8 @@ def test_explorer_embeds_ir_flat_net_sources_and_playback(tmp_path: Path) -> Non
     assert data["format"] == "rssmc-explorer"
     assert {p["id"] for p in data["ir"]["pages"]} == set(hpn.pages)
     assert data["figures"]["P^B[1,lwr,move]"] == "fig-PB_1_lwr_move.svg"
-    assert [s["transition"] for s in data["playback"]["steps"]] == names
+    names_of = data["flat"]["names"]
+    assert [names_of[t] for t in data["playback"]["fired"]] == names
     place_of = data["flat"]["place_of"]
     assert set(place_of) == set(hpn.places)
     # fused places are one flat place

@@ -11,7 +11,7 @@ from rssm_dsl.diagnostics import DiagnosticBag
 from rssm_dsl.hpn.flat import FlatNet, FlatPlace, FlatTransition
 from rssm_dsl.hpn.flatten import flatten
 from rssm_dsl.pipeline import compile_file
-from rssm_dsl.render.playback import load_playback
+from rssm_dsl.render.playback import Window, load_playback
 from rssm_dsl.source import Span
 from rssm_dsl.verify.report import render_json
 from rssm_dsl.verify.verifier import verify
@@ -108,7 +108,7 @@ def test_a_long_trace_is_cut_with_W855(tmp_path: Path) -> None:
     names = random_run(net, 30, seed=4)
     path = write_trace(tmp_path / "t.jsonl", names)
     bag = DiagnosticBag()
-    pb = load_playback(path, net, bag, max_steps=10)
+    pb = load_playback(path, net, bag, Window(max_steps=10))
     assert pb is not None and [s.transition for s in pb.steps] == names[:10]
     assert [d.code for d in bag.items] == ["W855"] and not bag.has_errors
     line = path.read_text().splitlines()[bag.items[0].span.line - 1]

@@ -51,14 +51,54 @@
   }
 
   // ---- the firing sequence ---------------------------------------------------------------
-  var seq = [{ transition: null, marking: new Set(FLAT.initial), unsafe: new Set(), manual: false }];
-  if (DATA.playback) {
-    DATA.playback.steps.forEach(function (s) {
-      seq.push({ transition: s.transition, marking: new Set(s.marking), unsafe: new Set(s.unsafe),
-                 manual: false, line: s.line });
-    });
+  // DATA.playback is a window of the run: window step k (0 .. fired.length) is the run's step
+  // first + k, reached by firing NAMES[fired[k - 1]]. The whole marking is embedded every
+  // `every` steps (checkpoints); any other step is found by firing from the checkpoint before
+  // it. Steps fired by hand (the token game) follow playback step `base`.
+  var PB = DATA.playback;
+  var NAMES = FLAT.names;
+  var FIRST = PB ? PB.first : 0;
+  var EVERY = PB ? Math.max(1, PB.every) : 1;
+  var base = PB ? PB.fired.length : 0;      // playback steps in use (firing by hand cuts them)
+  var manual = [];                           // the steps fired by hand after step base
+  var cache = null;                          // {k, marking, unsafe}: the playback step last reached
+  var TIMES = PB && PB.times && PB.times.t.every(function (t) { return t !== null; }) ? PB.times : null;
+  var SPAN = PB && PB.span && PB.span[0] !== null && PB.span[1] !== null ? PB.span : null;
+
+  function fireOn(marking, tid) {            // fire on a mutable marking; returns the unsafe places
+    var t = flatT.get(tid), unsafe = new Set();
+    t.pre.forEach(function (p) { marking.delete(p); });
+    t.post.forEach(function (p) { if (marking.has(p)) unsafe.add(p); marking.add(p); });
+    return unsafe;
   }
-  var step = 0;
+  function played(k) {                       // playback step k (0 <= k <= base)
+    if (!PB) return { transition: null, marking: new Set(FLAT.initial), unsafe: new Set(), manual: false };
+    if (!cache || cache.k > k || k - cache.k > EVERY) {
+      var c = k > 0 ? Math.floor((k - 1) / EVERY) : 0;  // fire at least once: the unsafe places
+      cache = { k: c * EVERY, marking: new Set(PB.checkpoints[c]), unsafe: new Set() };
+    }
+    while (cache.k < k) {
+      cache.unsafe = fireOn(cache.marking, NAMES[PB.fired[cache.k]]);
+      cache.k++;
+    }
+    return { transition: k ? NAMES[PB.fired[k - 1]] : null, marking: cache.marking,
+             unsafe: cache.unsafe, manual: false };
+  }
+  function stateAt(k) { return k <= base ? played(k) : manual[k - base - 1]; }
+  function lastStep() { return base + manual.length; }
+  function timeAt(k) {                       // the time of step k (seconds), or null
+    if (!TIMES || k > base) return null;
+    var lo = 0, hi = TIMES.k.length - 1;
+    while (lo < hi) { var mid = (lo + hi + 1) >> 1; if (TIMES.k[mid] <= k) lo = mid; else hi = mid - 1; }
+    return TIMES.t[lo];
+  }
+  function stepAtTime(t) {                   // the last playback step at or before time t
+    var lo = -1, hi = TIMES.t.length - 1;
+    while (lo < hi) { var mid = (lo + hi + 1) >> 1; if (TIMES.t[mid] <= t) lo = mid; else hi = mid - 1; }
+    if (lo < 0) return 0;
+    return Math.min(base, lo + 1 < TIMES.k.length ? TIMES.k[lo + 1] - 1 : base);
+  }
+  var step = 0, st = stateAt(0);
 
   function enabled(tid, marking) {
     var t = flatT.get(tid);
@@ -68,13 +108,10 @@
   }
 
   function fire(tid) {                          // interactive token game from the current step
-    var m = seq[step].marking, t = flatT.get(tid);
-    if (!enabled(tid, m)) return;
-    var next = new Set(m), unsafe = new Set();
-    t.pre.forEach(function (p) { next.delete(p); });
-    t.post.forEach(function (p) { if (next.has(p)) unsafe.add(p); next.add(p); });
-    seq = seq.slice(0, step + 1);
-    seq.push({ transition: tid, marking: next, unsafe: unsafe, manual: true });
+    if (!enabled(tid, st.marking)) return;
+    var next = new Set(st.marking), unsafe = fireOn(next, tid);
+    if (step <= base) { base = step; manual = []; } else { manual = manual.slice(0, step - base); }
+    manual.push({ transition: tid, marking: next, unsafe: unsafe, manual: true });
     setStep(step + 1);
   }
 
@@ -203,7 +240,7 @@
   }
 
   function draw() {
-    var L = layout(current), st = seq[step], m = st.marking;
+    var L = layout(current), m = st.marking;
     clear(canvas);
     var defs = svg("defs", {}, canvas);
     var marker = svg("marker", { id: "arrowhead", viewBox: "0 0 10 10", refX: 10, refY: 5,
@@ -260,7 +297,7 @@
       g.addEventListener("click", function (ev) { ev.stopPropagation(); clicked(n); });
       g.addEventListener("dblclick", function (ev) {
         ev.stopPropagation();
-        if (n.kind === "transition" && enabled(n.id, seq[step].marking)) fire(n.id);
+        if (n.kind === "transition" && enabled(n.id, st.marking)) fire(n.id);
       });
     });
   }
@@ -391,7 +428,7 @@
     var pid = kind === "page" ? o.parent : o.page;
     if (pid !== null) linkButton(pid, function () { go(pid, null); }, inPage);
     if (kind === "place") {
-      var m = seq[step].marking.has(placeOf.get(o.id));
+      var m = st.marking.has(placeOf.get(o.id));
       row("marked", m ? "yes (one token)" : "no").setAttribute("data-marked", String(m));
       if (o.operation) {
         row("operation", o.operation.kind + (o.operation.void ? " (void)" : ""));
@@ -419,7 +456,7 @@
       } else {
         row("condition", "none (true)");
       }
-      var en = enabled(o.id, seq[step].marking);
+      var en = enabled(o.id, st.marking);
       var dd2 = row("enabled", flatT.has(o.id) ? (en ? "yes" : "no") : "never (condition constant false)");
       if (en) {
         var fb = html("button", "Fire", dd2);
@@ -480,47 +517,88 @@
     if (ev.key === "Escape") { ev.target.value = ""; search(""); }
   });
 
-  // ---- playback --------------------------------------------------------------------------
+  // ---- playback ----------------------------------------------------------------------------
   function setStep(k) {
-    step = Math.max(0, Math.min(k, seq.length - 1));
-    var st = seq[step];
+    step = Math.max(0, Math.min(k, lastStep()));
+    st = stateAt(step);
+    cursor();
     if (st.transition && $("follow").checked) {
       var p = pageOf(st.transition);
       if (p !== current) { go(p, null); playInfo(); return; }
     }
     draw(); details(); playInfo();
   }
+  function seconds(t) { return String(+t.toPrecision(6)) + " s"; }
   function playInfo() {
-    var slider = $("stepslider"), info = $("stepinfo"), st = seq[step];
-    slider.max = String(seq.length - 1);
+    var slider = $("stepslider"), info = $("stepinfo"), box = $("stepbox");
+    slider.max = String(lastStep());
     slider.value = String(step);
+    box.min = String(FIRST);
+    box.max = String(FIRST + lastStep());
+    if (document.activeElement !== box) box.value = String(FIRST + step);
     clear(info);
-    info.setAttribute("data-step", String(step));
-    var src = DATA.playback ? DATA.playback.kind + " " + DATA.playback.source : "token game";
-    html("span", "step " + step + " / " + (seq.length - 1) + " (" + src + ")", info);
+    info.setAttribute("data-step", String(FIRST + step));
+    info.setAttribute("data-marking", Array.from(st.marking).sort(function (a, b) { return a - b; }).join(" "));
+    var t = timeAt(step);
+    if (t === null) info.removeAttribute("data-time"); else info.setAttribute("data-time", String(t));
+    if (TIMES && document.activeElement !== $("timebox")) $("timebox").value = t === null ? "" : String(t);
+    var src = PB ? PB.kind + " " + PB.source : "token game";
+    html("span", "step " + (FIRST + step) + " / " + (FIRST + lastStep()) + " (" + src + ")", info);
+    if (t !== null) html("span", " \u2014 t = " + seconds(t), info, "time");
     if (st.transition) {
       html("span", " \u2014 fired ", info);
-      var t = st.transition;
-      var b = linkButton(t, function () { go(pageOf(t), t); }, info);
+      var tid = st.transition;
+      var b = linkButton(tid, function () { go(pageOf(tid), tid); }, info);
       b.id = "firedlink";
       if (st.manual) html("span", " (by you)", info);
       if (st.unsafe.size) html("span", " \u2014 UNSAFE: a place got a second token", info);
     } else {
-      html("span", " \u2014 initial marking", info);
+      html("span", step === 0 && FIRST === 0 ? " \u2014 initial marking" : " \u2014 first step of the window", info);
     }
     var finished = FLAT.final.length && FLAT.final.every(function (q) { return st.marking.has(q); });
     var any = false;
-    flatT.forEach(function (t, id) { if (!any && enabled(id, st.marking)) any = true; });
+    flatT.forEach(function (tr, id) { if (!any && enabled(id, st.marking)) any = true; });
     if (finished) html("span", " \u2014 the system has finished", info, "end");
     else if (!any) html("span", " \u2014 nothing can fire: deadlock", info, "end");
     $("first").disabled = $("prev").disabled = step === 0;
-    $("last").disabled = $("next").disabled = step === seq.length - 1;
+    $("last").disabled = $("next").disabled = step === lastStep();
+  }
+  function windowNote(extra) {                 // which steps of the run this file holds
+    var w = $("window");
+    clear(w);
+    var text = [];
+    if (PB && !PB.whole) {
+      var span = TIMES ? " (t = " + seconds(timeAt(0)) + " to " + seconds(timeAt(PB.fired.length)) + ")" : "";
+      text.push("This file holds steps " + PB.first + " to " + (PB.first + PB.fired.length) + span +
+                " of the " + PB.total + " firings of the " + PB.kind +
+                (SPAN ? " (t = " + seconds(SPAN[0]) + " to " + seconds(SPAN[1]) + ")" : "") +
+                ". To see others, render it again: " + PB.hint + ".");
+    }
+    if (extra) text.push(extra);
+    w.hidden = !text.length;
+    text.forEach(function (t) { html("div", t, w); });
+  }
+  function seekRun(n) {                        // go to the run's step n
+    if (isNaN(n)) return;
+    var k = n - FIRST;
+    windowNote(k < 0 || k > lastStep() ? "Step " + n + " is not in this file (steps " + FIRST + " to " +
+               (FIRST + lastStep()) + ")." : null);
+    setStep(k);
+  }
+  function seekTime(t) {                       // go to the last step at or before time t
+    if (!TIMES || isNaN(t)) return;
+    var outside = t < timeAt(0) || t > timeAt(base);
+    windowNote(outside ? "t = " + seconds(t) + " is not in this file (t = " + seconds(timeAt(0)) + " to " +
+               seconds(timeAt(base)) + ")." : null);
+    setStep(stepAtTime(t));
   }
   $("first").addEventListener("click", function () { setStep(0); });
   $("prev").addEventListener("click", function () { setStep(step - 1); });
   $("next").addEventListener("click", function () { setStep(step + 1); });
-  $("last").addEventListener("click", function () { setStep(seq.length - 1); });
+  $("last").addEventListener("click", function () { setStep(lastStep()); });
   $("stepslider").addEventListener("input", function (ev) { setStep(parseInt(ev.target.value, 10)); });
+  $("stepbox").addEventListener("change", function (ev) { seekRun(parseInt(ev.target.value, 10)); });
+  $("timebox").addEventListener("change", function (ev) { seekTime(parseFloat(ev.target.value)); });
   $("up").addEventListener("click", function () {
     var p = pages.get(current);
     if (p.parent !== null) go(p.parent, null);
@@ -530,6 +608,172 @@
     if (ev.key === "ArrowRight") setStep(step + 1);
     else if (ev.key === "ArrowLeft") setStep(step - 1);
   });
+
+  // ---- the series of the run -------------------------------------------------------------
+  // DATA.series: charts (the rows of `rssmc plot`), each with lines of (t, v) samples already
+  // decimated in Python (v null: a gap); drawn as steps in plain SVG. A vertical cursor marks
+  // the time of the current playback step; a click on a chart goes to the step at that time.
+  var SER = DATA.series;
+  var COLORS = ["#1f77b4", "#d62728", "#2ca02c", "#9467bd", "#ff7f0e", "#17becf", "#8c564b",
+                "#e377c2", "#7f7f7f", "#bcbd22"];
+  var charts = [], T0 = 0, T1 = 1;
+
+  function timeRange() {
+    var lo = Infinity, hi = -Infinity;
+    SER.charts.forEach(function (c) {
+      c.lines.forEach(function (l) {
+        if (l.t.length) { lo = Math.min(lo, l.t[0]); hi = Math.max(hi, l.t[l.t.length - 1]); }
+      });
+    });
+    if (SPAN) { lo = Math.min(lo, SPAN[0]); hi = Math.max(hi, SPAN[1]); }
+    if (!isFinite(lo)) { lo = 0; hi = 1; }
+    if (hi <= lo) hi = lo + 1;
+    T0 = lo; T1 = hi;
+  }
+  function ticks(lo, hi, n) {                  // about n round numbers between lo and hi
+    var raw = (hi - lo) / Math.max(n, 1), mag = Math.pow(10, Math.floor(Math.log10(raw)));
+    var unit = [1, 2, 5, 10].map(function (f) { return f * mag; }).find(function (u) { return u >= raw; });
+    var out = [];
+    for (var v = Math.ceil(lo / unit) * unit; v <= hi + unit * 1e-9; v += unit) out.push(+v.toPrecision(12));
+    return out;
+  }
+  function number(v) {
+    var a = Math.abs(v);
+    return a !== 0 && (a >= 1e5 || a < 1e-3) ? v.toExponential(2) : String(+v.toPrecision(4));
+  }
+  function valueAt(l, t) {                     // the value of a line drawn as steps at time t
+    var lo = -1, hi = l.t.length - 1;
+    while (lo < hi) { var mid = (lo + hi + 1) >> 1; if (l.t[mid] <= t) lo = mid; else hi = mid - 1; }
+    return lo < 0 ? null : l.v[lo];
+  }
+  function yDomain(c) {
+    if (c.kind === "category") return [-0.5, Math.max(c.labels.length, 1) - 0.5];
+    var lo = Infinity, hi = -Infinity;
+    c.lines.forEach(function (l) {
+      l.v.forEach(function (v) { if (v !== null) { if (v < lo) lo = v; if (v > hi) hi = v; } });
+    });
+    if (!isFinite(lo)) return [0, 1];
+    if (hi === lo) { var d = Math.abs(lo) * 0.1 || 1; return [lo - d, hi + d]; }
+    var pad = (hi - lo) * 0.05;
+    return [lo - pad, hi + pad];
+  }
+  function stepPath(l, x, y) {                 // the samples as steps (held until the next one)
+    var d = [], pen = false, lastY = 0;
+    for (var i = 0; i < l.t.length; i++) {
+      if (l.v[i] === null) { pen = false; continue; }
+      var px = x(l.t[i]).toFixed(1), py = y(l.v[i]).toFixed(1);
+      if (!pen) d.push("M" + px + "," + py);
+      else d.push("H" + px + (py !== lastY ? "V" + py : ""));
+      pen = true; lastY = py;
+    }
+    return d.join("");
+  }
+  function lineLabel(c, l) { return l.name.length > c.title.length ? l.name.slice(c.title.length) : l.name; }
+
+  function drawChart(c, box, width, bottomAxis) {
+    var div = html("div", null, box, "chart");
+    div.setAttribute("data-title", c.title);
+    var head = html("div", null, div, "head");
+    html("span", c.title, head, "title");
+    if (c.lines.length > 1) {
+      c.lines.forEach(function (l, j) {
+        var key = html("span", "\u25a0 " + lineLabel(c, l), head, "key");
+        key.style.color = COLORS[j % COLORS.length];
+      });
+    }
+    var readout = html("span", "", head, "readout");
+    var cat = c.kind === "category";
+    var left = 58;
+    if (cat) c.labels.forEach(function (lb) { left = Math.max(left, Math.min(180, textWidth(lb, 10) + 12)); });
+    var top = 6, ph = cat ? Math.max(36, 16 * c.labels.length) : 80, bottom = bottomAxis ? 20 : 6;
+    var pw = Math.max(50, width - left - 12), H = top + ph + bottom;
+    var dom = yDomain(c);
+    function x(t) { return left + (t - T0) / (T1 - T0) * pw; }
+    function y(v) { return top + (dom[1] - v) / (dom[1] - dom[0]) * ph; }
+    var s = svg("svg", { width: width, height: H, viewBox: "0 0 " + width + " " + H,
+                         "data-t0": T0, "data-t1": T1, "data-y0": dom[0], "data-y1": dom[1],
+                         "data-left": left, "data-top": top, "data-width": pw, "data-height": ph }, div);
+    svg("rect", { "class": "frame", x: left, y: top, width: pw, height: ph }, s);
+    if (TIMES && PB && !PB.whole) {            // the steps this file holds
+      var a = x(timeAt(0)), b = x(timeAt(PB.fired.length));
+      svg("rect", { "class": "window", x: a, y: top, width: Math.max(1, b - a), height: ph }, s);
+    }
+    ticks(T0, T1, Math.max(2, Math.floor(pw / 90))).forEach(function (t) {
+      svg("line", { "class": "grid", x1: x(t), x2: x(t), y1: top, y2: top + ph }, s);
+      if (bottomAxis) {
+        svg("text", { "class": "tick", x: x(t), y: top + ph + 14, "text-anchor": "middle" }, s).textContent = number(t) + " s";
+      }
+    });
+    var levels = cat ? c.labels.map(function (lb, i) { return [i, lb]; })
+                     : ticks(dom[0], dom[1], Math.max(2, Math.floor(ph / 28))).map(function (v) { return [v, number(v)]; });
+    levels.forEach(function (lv) {
+      svg("line", { "class": "grid", x1: left, x2: left + pw, y1: y(lv[0]), y2: y(lv[0]) }, s);
+      svg("text", { "class": "tick", x: left - 4, y: y(lv[0]) + 3, "text-anchor": "end" }, s).textContent = lv[1];
+    });
+    c.lines.forEach(function (l, j) {
+      var path = svg("path", { "class": "series", d: stepPath(l, x, y), stroke: COLORS[j % COLORS.length],
+                               "data-name": l.name, "data-points": l.t.length, "data-samples": l.samples }, s);
+      svg("title", {}, path).textContent = l.name + " (" + l.samples + " samples" +
+        (l.decimated ? "; " + l.t.length + " drawn: the smallest and largest of each stretch" : "") + ")";
+    });
+    if (!c.lines.some(function (l) { return l.t.length; })) {
+      svg("text", { "class": "empty", x: left + 8, y: top + ph / 2 }, s).textContent = "(no samples)";
+    }
+    var cur = svg("line", { "class": "cursor", x1: left, x2: left, y1: top, y2: top + ph, visibility: "hidden" }, s);
+    function timeOf(ev) {
+      var r = s.getBoundingClientRect();
+      var px = (ev.clientX - r.left) * width / r.width;
+      return T0 + (px - left) / pw * (T1 - T0);
+    }
+    s.addEventListener("mousemove", function (ev) {
+      var t = timeOf(ev);
+      readout.textContent = "t = " + number(t) + " s: " + c.lines.map(function (l) {
+        var v = valueAt(l, t);
+        var shown = v === null ? "\u2014" : cat ? (c.labels[v] !== undefined ? c.labels[v] : String(v)) : number(v);
+        return (c.lines.length > 1 ? lineLabel(c, l) + " " : "") + shown;
+      }).join(", ");
+    });
+    s.addEventListener("mouseleave", function () { readout.textContent = ""; });
+    s.addEventListener("click", function (ev) { if (TIMES) seekTime(timeOf(ev)); });
+    return { cursor: cur, x: x };
+  }
+  function drawCharts() {
+    if (!SER) return;
+    var box = $("charts");
+    clear(box);
+    charts = [];
+    var width = Math.max(320, box.clientWidth - 4);
+    SER.charts.forEach(function (c, i) { charts.push(drawChart(c, box, width, i === SER.charts.length - 1)); });
+    cursor();
+  }
+  function cursor() {                          // the time of the current step on every chart
+    var t = timeAt(step);
+    charts.forEach(function (ch) {
+      if (t === null) { ch.cursor.setAttribute("visibility", "hidden"); ch.cursor.removeAttribute("data-time"); return; }
+      var px = ch.x(t).toFixed(1);
+      ch.cursor.setAttribute("x1", px); ch.cursor.setAttribute("x2", px);
+      ch.cursor.setAttribute("visibility", "visible");
+      ch.cursor.setAttribute("data-time", String(t));
+    });
+  }
+  function seriesPanel() {
+    if (!SER) return;
+    $("series").hidden = false;
+    timeRange();
+    var head = $("serieshead"), decimated = 0;
+    SER.charts.forEach(function (c) { c.lines.forEach(function (l) { if (l.decimated) decimated++; }); });
+    html("span", "Series of " + SER.source + " (system " + SER.system + "): " + SER.series + " series" +
+         (SER.in_file > SER.series ? " of the " + SER.in_file + " in the file" : "") +
+         (decimated ? "; " + decimated + " drawn from fewer points than recorded (the smallest and largest of each stretch kept)" : "") +
+         (TIMES ? "; click a chart to go to the step at that time" : ""), head);
+    drawCharts();
+    var pending = false;
+    window.addEventListener("resize", function () {
+      if (pending) return;
+      pending = true;
+      requestAnimationFrame(function () { pending = false; drawCharts(); });
+    });
+  }
 
   // ---- pan and zoom ----------------------------------------------------------------------
   function zoom(f, cx, cy) {
@@ -555,8 +799,12 @@
 
   // ---- start -----------------------------------------------------------------------------
   $("sysname").textContent = IR.system;
+  $("timelabel").hidden = !TIMES;
   buildTree();
+  seriesPanel();
   fromHash();
   playInfo();
+  windowNote(null);
+  document.body.setAttribute("data-ready-ms", String(performance.now()));
   document.body.setAttribute("data-ready", "true");
 })();
