@@ -7,8 +7,10 @@
    gravity and Jacobian, the same impedance law, gains and damping form) for the same
    trajectory (the example's: two 10 cm circles of 2.0 s at a constant rate, clockwise then
    counter-clockwise) and the same simulated duration. Both as µs per 1 kHz step and real-time
-   factor, and their ratio. Goals: the HPN-driven run at least 10x faster than real time and
-   within 2x of the hand loop.
+   factor, and their ratio. Goals (issue 19, item 5): the HPN-driven run at least 10x faster
+   than real time (on the CI machine, which is slower than a typical workstation) and the
+   interpreter's overhead, the ratio of the HPN-driven run's time per step to the hand loop's,
+   at most 1.3x. The two figures the goals are about are printed last, as ratios.
 2. Tracking: RMS and maximum Cartesian error of both, with the specification's
    velocity-error damping and the paper's damping (-D dP/dt). Goal: RMS under 1 mm.
 
@@ -39,6 +41,8 @@ from rssm_dsl.pipeline import Compilation, compile_file  # noqa: E402
 from rssm_dsl.run import Experiment, RunOptions, run_experiment  # noqa: E402
 
 EXAMPLE = ROOT / "examples" / "lwr4_circle.rssm"
+RTF_GOAL = 10.0          # x real time, at least
+OVERHEAD_GOAL = 1.3      # x the hand loop's time per step, at most
 
 
 def hpn_run(comp: Compilation, damping: str) -> Experiment:
@@ -90,11 +94,8 @@ def main() -> None:
           f"({exp.simulated:.3f} s simulated), K = {exp.params['stiffness']:g} N/m, "
           f"D = {exp.params['damping']:g} N·s/m; medians of {len(pairs)} pairs, CPU time")
     print(f"  HPN-driven run   {hpn_us:7.1f} µs/step  {hpn_rtf:6.1f}x real time "
-          f"(wall: {hpn_wall:.1f}x)  {exp.firings / exp.device_steps:.1f} firings/step"
-          f"   goal >= 10x: {'met' if hpn_rtf >= 10 else 'NOT met'}")
+          f"(wall: {hpn_wall:.1f}x)  {exp.firings / exp.device_steps:.1f} firings/step")
     print(f"  hand loop        {hand_us:7.1f} µs/step  {hand_rtf:6.1f}x real time")
-    print(f"  ratio            {ratio:7.2f}x the hand loop's time per step"
-          f"   goal <= 2x: {'met' if ratio <= 2 else 'NOT met'}")
     print("tracking error on the 10 cm circle (RMS / max):")
     rows = (("HPN, velocity-error damping", exp.metrics.rms_error, exp.metrics.max_error),
             ("hand, velocity-error damping", hand["rms_m"], hand["max_m"]),
@@ -104,6 +105,11 @@ def main() -> None:
         print(f"  {label:30s} {rms * 1e3:6.3f} mm / {mx * 1e3:6.3f} mm")
     print(f"  goal RMS < 1 mm (HPN, velocity-error): "
           f"{'met' if exp.metrics.rms_error < 1e-3 else 'NOT met'}")
+    print("speed, as ratios (medians, CPU time, this machine):")
+    print(f"  real-time factor of the HPN-driven run   {hpn_rtf:6.1f}x   goal >= {RTF_GOAL:g}x: "
+          f"{'met' if hpn_rtf >= RTF_GOAL else 'NOT met'}")
+    print(f"  overhead: HPN-driven run / hand loop      {ratio:6.2f}x   goal <= {OVERHEAD_GOAL:g}x: "
+          f"{'met' if ratio <= OVERHEAD_GOAL else 'NOT met'}")
     if args.json is not None:
         args.json.write_text(json.dumps({
             "steps": exp.device_steps, "pairs": len(pairs),
@@ -111,6 +117,7 @@ def main() -> None:
                     "firings_per_step": exp.firings / exp.device_steps},
             "hand": {"cpu_us_per_step": hand_us, "cpu_rtf": hand_rtf},
             "ratio": ratio,
+            "goals": {"real_time_factor_min": RTF_GOAL, "overhead_max": OVERHEAD_GOAL},
             "tracking_m": {label: {"rms": rms, "max": mx} for label, rms, mx in rows},
         }, indent=2) + "\n", encoding="utf-8")
 

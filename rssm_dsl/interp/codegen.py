@@ -22,28 +22,43 @@ The code is generated from the structure of :class:`rssm_core.firing.Net` (``gam
 pre-sets, post-sets and consumers) and follows its rule: empty the input places, then for each
 output place report an unsafe firing if it is still marked, and mark it. ``tests/core``
 checks the compiled functions against the rule on random safe and unsafe nets.
+
+What the generator knows is not computed at run time. A function is only called when its
+transition is enabled (the scheduler makes sure of it), so the transition's own count of
+missing tokens is 0 on entry: its value is a constant all through the function, written once
+when the input places are emptied (no operation or effect runs in between) and again where
+the output places change it, and its removal from the enabled set needs no test. An input place
+the function has emptied holds no token until the function marks it again (nothing else
+writes the token game while it runs), so the unsafe check of such a place is left out. Every
+other count, the calls on the enabled set and the pushes on the stack of local steps are the
+step-by-step rule's, in the same order, so the state any operation, effect or failure sees is
+the same. The names the code uses are bound as default arguments (fast locals).
 """
 
 from __future__ import annotations
 
-from collections.abc import Callable, Mapping, Sequence
+import re
+from collections.abc import Callable, Collection, Mapping, Sequence
 from types import CodeType
 from typing import Any
 
 from rssm_dsl.interp.engine import TokenGame
 
 Action = Callable[[], None]
+Step = Callable[[], object]      # an operation or an effect (what it returns is not used)
 MAX_MACRO = 64                   # firings in one macro step at most
 _CODE: dict[str, CodeType] = {}  # compiled sources, shared by the runs of a process
 MAX_CACHED = 100_000
+# the names of the namespace a function uses (bound as default arguments: fast locals)
+_NAMES = re.compile(r"\b(?:tokens|missing|_add|_discard|_local|_unsafe|_failure|[eoGN][0-9]+)\b")
 
 
 class FiringCode:
     """Per transition: ``fire[t]`` fires it alone; ``macros[t]`` fires its macro step, which
     makes ``macro_len[t]`` firings (``macros`` is None when macro steps are off)."""
 
-    def __init__(self, game: TokenGame, ops: Sequence[Action | None],
-                 effects: Sequence[Action | None], guards: Sequence[object | None],
+    def __init__(self, game: TokenGame, ops: Sequence[Step | None],
+                 effects: Sequence[Step | None], guards: Sequence[object | None],
                  gates: Sequence[object | None], eager: bytearray, local: list[int],
                  case_groups: Mapping[int, Any], failure: Callable[[int, Exception], None],
                  unsafe: Callable[[int, int], None], macros: bool) -> None:
@@ -88,7 +103,9 @@ class FiringCode:
         return first_call
 
     def _compile(self, name: str, body: list[str]) -> Action:
-        source = f"def {name}():\n" + "\n".join("    " + line for line in body or ["pass"])
+        text = "\n".join("    " + line for line in body or ["pass"])
+        names = sorted(set(_NAMES.findall(text)))
+        source = f"def {name}({', '.join(f'{n}={n}' for n in names)}):\n" + text
         code = _CODE.get(source)
         if code is None:
             if len(_CODE) >= MAX_CACHED:
@@ -100,13 +117,20 @@ class FiringCode:
         return fn
 
     # ------------------------------------------------------------------ pieces of code
-    def _consume(self, t: int, body: list[str]) -> None:
+    def _consume(self, t: int, body: list[str], known: dict[int, int]) -> None:
+        """Empty the input places of ``t``. ``known``: the counts of missing tokens the
+        generator knows (``t``'s own, 0 on entry), updated here and written at the end."""
         rule, eager = self.game.rule, self.eager
         pre, consumers = rule.pre, rule.consumers
+        known[t] = 0
         for p in pre[t]:
             body.append(f"tokens[{p}] = 0")
             for u in consumers[p]:
-                if eager[u]:                     # local steps are not kept in the enabled set
+                if u in known:
+                    if known[u] == 0 and not eager[u]:
+                        body.append(f"_discard({u})")
+                    known[u] += 1
+                elif eager[u]:                   # local steps are not kept in the enabled set
                     body.append(f"missing[{u}] += 1")
                 elif len(pre[u]) == 1:
                     body.append(f"_discard({u})")
@@ -115,28 +139,37 @@ class FiringCode:
                     body.append(f"if missing[{u}] == 0:")
                     body.append(f"    _discard({u})")
                     body.append(f"missing[{u}] += 1")
+        if pre[t]:
+            body.append(f"missing[{t}] = {known[t]}")
 
     def _effect(self, t: int, body: list[str]) -> None:
         if self.effects[t] is not None:
             self.ns[f"e{t}"] = self.effects[t]
             body.append(f"e{t}()")
 
-    def _arrive(self, src: str, p: int, body: list[str]) -> None:
-        """A token arrives in ``p``: the safeness check and the place's operation."""
-        body.append(f"if tokens[{p}]:")
-        body.append(f"    _unsafe({src}, {p})")
+    def _arrive(self, src: str, p: int, body: list[str], empty: Collection[int]) -> None:
+        """A token arrives in ``p``: the safeness check (not for a place in ``empty``, known
+        to hold no token) and the place's operation."""
+        if p not in empty:
+            body.append(f"if tokens[{p}]:")
+            body.append(f"    _unsafe({src}, {p})")
         if self.ops[p] is not None:
             self.ns[f"o{p}"] = self.ops[p]
             body += ["try:", f"    o{p}()", "except Exception as e:", f"    _failure({p}, e)"]
 
-    def _mark(self, p: int, body: list[str]) -> None:
+    def _mark(self, p: int, body: list[str], known: dict[int, int]) -> None:
         """The token of ``p`` is put and the transitions reading ``p`` are updated."""
         rule, eager = self.game.rule, self.eager
         pre, consumers = rule.pre, rule.consumers
         body.append(f"tokens[{p}] = 1")
         for u in consumers[p]:
             enable = f"_local({u})" if eager[u] else f"_add({u})"
-            if len(pre[u]) == 1:
+            if u in known:
+                known[u] -= 1
+                body.append(f"missing[{u}] = {known[u]}")
+                if known[u] == 0:
+                    body.append(enable)
+            elif len(pre[u]) == 1:
                 body.append(f"missing[{u}] = 0")
                 body.append(enable)
             else:
@@ -147,11 +180,14 @@ class FiringCode:
 
     def _firing(self, t: int) -> list[str]:
         body: list[str] = []
-        self._consume(t, body)
+        known: dict[int, int] = {}
+        self._consume(t, body, known)
         self._effect(t, body)
+        empty = set(self.game.rule.pre[t])
         for p in self.game.rule.post[t]:
-            self._arrive(str(t), p, body)
-            self._mark(p, body)
+            self._arrive(str(t), p, body, empty)
+            self._mark(p, body, known)
+            empty.discard(p)
         return body
 
     def _macro(self, t: int) -> tuple[list[str], int]:
@@ -172,14 +208,16 @@ class FiringCode:
         eager, guards, gates = self.eager, self.guards, self.gates
         body: list[str] = []
         virtual: dict[int, None] = {}      # marked within the macro, not yet consumed
+        known: dict[int, int] = {}
+        empty = pre[t]                     # emptied by t; the macro marks them only at its end
 
         def produce(src: str, p: int) -> None:
             if p in virtual:
                 body.append(f"_unsafe({src}, {p})")
-            self._arrive(src, p, body)
+            self._arrive(src, p, body, empty)
             virtual[p] = None
 
-        self._consume(t, body)
+        self._consume(t, body, known)
         self._effect(t, body)
         for p in post[t]:
             produce(str(t), p)
@@ -198,12 +236,17 @@ class FiringCode:
                     fired.update(row[3] for row in group.table)
                     del virtual[p]
                     self.ns[f"G{p}"] = group.table
-                    self.ns[f"S{p}"] = group.state
-                    body += [f"c = G{p}[S{p}.new_mask]",
-                             "if tokens[c[1]]:", "    _unsafe(c[0], c[1])",
-                             "if c[2] is not None:", "    try:", "        c[2]()",
-                             "    except Exception as e:", "        _failure(c[1], e)"]
-                    produce("c[3]", group.out_place)
+                    self.ns[f"N{p}"] = group.state.new      # its mask is state.new_mask
+                    # the case's transition, place, operation and `done` transition
+                    body += [f"ct, cp, co, cd = G{p}[N{p}.mask]",
+                             "if tokens[cp]:", "    _unsafe(ct, cp)"]
+                    run = ["try:", "    co()", "except Exception as e:", "    _failure(cp, e)"]
+                    ops = [row[2] is not None for row in group.table]
+                    if all(ops):
+                        body += run
+                    elif any(ops):
+                        body += ["if co is not None:", *("    " + x for x in run)]
+                    produce("cd", group.out_place)
                     count += 2
                     changed = True
                     continue
@@ -220,5 +263,5 @@ class FiringCode:
                         changed = True
                         break
         for p in virtual:
-            self._mark(p, body)
+            self._mark(p, body, known)
         return body, count

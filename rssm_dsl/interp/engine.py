@@ -34,8 +34,10 @@ class TokenGame:
         self.post: list[tuple[int, ...]] = list(self.rule.post)
         self.consumers: list[tuple[int, ...]] = list(self.rule.consumers)
         self.missing: list[int] = [len(ps) for ps in self.pre]
-        self.tokens = bytearray(len(net.places))    # a token is there (usable or not)
-        self.usable = bytearray(len(net.places))    # ... and its operation has finished
+        # lists rather than bytearrays: the compiled firing code indexes them with constants,
+        # which Python specialises for lists only
+        self.tokens: list[int] = [0] * len(net.places)   # a token is there (usable or not)
+        self.usable: list[int] = [0] * len(net.places)   # ... and its operation has finished
         self.enabled: set[int] = set(self.rule.sources)
         for p in sorted(net.initial):
             self.tokens[p] = 1

@@ -25,6 +25,7 @@ and "Communication modes"):
 
 from __future__ import annotations
 
+import functools
 from collections import defaultdict
 from collections.abc import Callable
 from dataclasses import dataclass, field
@@ -55,7 +56,7 @@ from rssm_dsl.source import Span
 
 Op = Callable[[], None]
 Guard = Callable[[], bool]
-Effect = Callable[[], None]
+Effect = Callable[[], object]      # what it returns is not used
 
 
 @dataclass
@@ -307,10 +308,8 @@ class _Builder:
         if key in cache:
             return cache[key]
         run, _ = compiler.case(case.body)
-        stage, variables = s.stage, s.vars
-
-        def partial_function() -> None:
-            run(variables, stage)
+        # run(variables, stage): a partial object calls it without a frame of its own
+        partial_function: Op = functools.partial(run, s.vars, s.stage)
         cache[key] = partial_function
         return partial_function
 
@@ -440,12 +439,9 @@ def _getter(s: SubsystemState, name: str) -> Callable[[], Any]:
 
 
 def _freeze_new(s: SubsystemState) -> Effect:
-    """new(x) of every input, frozen for the data cases of the transition function."""
-    freeze = s.new.freeze
-
-    def freeze_new() -> None:
-        freeze()
-    return freeze_new
+    """new(x) of every input, frozen for the data cases of the transition function (the
+    bound method itself; the mask it returns is read from ``s.new`` by the data cases)."""
+    return s.new.freeze
 
 
 def _commit(s: SubsystemState) -> Effect:

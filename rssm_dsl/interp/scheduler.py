@@ -421,15 +421,26 @@ class _Finish(Exception):
         self.steps, self.reason, self.message = steps, reason, message
 
 
+class _Replaying:
+    """The deterministic loop's set of conditional transitions when replaying: every turn takes
+    the way that fires the next transition of the forced sequence."""
+
+    __slots__ = ()
+
+    @staticmethod
+    def isdisjoint(enabled: object) -> bool:
+        return False
+
+
 class _Deterministic:
     """The deterministic mode's loop (see the module docstring): local steps first, then the
     seeded choice among the active transitions, simulated time moved to the next tick when
     nothing can fire. The state of the run lives in the attributes; the hot loop,
-    :meth:`run`, works on local variables only."""
+    :meth:`loop`, works on local variables only."""
 
-    __slots__ = ("clock", "enabled", "final", "fire", "forced", "game", "gates", "guards",
-                 "instant", "instant_steps", "limit", "local", "macros", "missing", "mlen",
-                 "next_look", "record", "rnd", "rt", "sim", "steps", "timers", "tokens",
+    __slots__ = ("clock", "conditional", "enabled", "final", "fire", "forced", "game", "gates",
+                 "guards", "instant", "instant_steps", "limit", "local", "macros", "missing",
+                 "mlen", "next_look", "record", "rnd", "rt", "sim", "steps", "timers", "tokens",
                  "tracer", "until", "was_forced")
 
     def __init__(self, sim: Simulator) -> None:
@@ -438,6 +449,13 @@ class _Deterministic:
         assert isinstance(clock, SimClock)
         self.sim, self.rt, self.game, self.clock = sim, rt, game, clock
         self.gates, self.guards, self.fire = rt.gates, rt.guards, sim.fire
+        # the transitions with a tick to wait for or a condition: while none is enabled, every
+        # enabled transition is active (the common case the hot loop takes without a scan).
+        # When replaying, no turn takes that way (each fires the next forced transition).
+        self.conditional: frozenset[int] | _Replaying = _Replaying() if opt.forced is not None \
+            else frozenset(t for t, (gate, guard) in enumerate(zip(rt.gates, rt.guards,
+                                                                    strict=True))
+                           if gate is not None or guard is not None)
         self.missing, self.enabled, self.tokens = game.missing, game.enabled, game.tokens
         self.rnd = random.Random(opt.seed).random
         self.final = sim.final
@@ -459,7 +477,14 @@ class _Deterministic:
         self.enabled.difference_update(self.local)   # local steps live on the stack and timers
 
     def run(self) -> tuple[int, str, str]:
-        """Fire until something ends the run (or raise :class:`_Finish` or :class:`_Stop`).
+        """Fire until something ends the run (or raise :class:`_Finish` or :class:`_Stop`);
+        see :meth:`loop`."""
+        if self.tokens[self.final] or self.limit <= 0:
+            return self.ended(0)
+        return self.loop()
+
+    def loop(self) -> tuple[int, str, str]:
+        """The turns of :meth:`run` (the system has not finished, the limit is not reached).
         Each turn fires one transition: the local step on top of the stack (see
         ``Simulator._local_steps``; one whose tick has not come waits in ``timers``, one that
         is no longer enabled or whose condition does not hold is dropped), else one chosen
@@ -469,15 +494,20 @@ class _Deterministic:
         macros, mlen, enabled, gates, guards = (self.macros, self.mlen, self.enabled,
                                                 self.gates, self.guards)
         clock, rnd, missing, timers = self.clock, self.rnd, self.missing, self.timers
-        replay = self.choose_forced if self.forced is not None else None
-        steps, next_look = 0, self.next_look
+        conditional = self.conditional
+        steps = 0
+        # Below `fast` no look at progress is due and every macro step fits under the limit
+        # with room to spare: a turn fires its macro step and only checks for the final place
+        # (the limit cannot have been reached). At or above it, the turn checks as it always
+        # does (see `checked`). Without macro steps every turn takes the checked way.
+        table = macros if macros is not None else []
+        spare = limit - max(mlen, default=1)
+        fast = min(self.next_look, spare) if macros is not None else -1
         try:
             while True:                          # the loop is hot: locals only
-                if tokens[final] or steps >= limit:
-                    return self.ended(steps)
                 if local:
                     t = local.pop()
-                    if missing[t] != 0:
+                    if missing[t]:
                         continue
                     gate = gates[t]
                     if gate is not None and gate.next > clock.ns:
@@ -486,38 +516,75 @@ class _Deterministic:
                     guard = guards[t]
                     if guard is not None and not guard():
                         continue
-                elif replay is not None:
-                    t = replay(steps)
-                    gate = gates[t]
-                else:
-                    now = clock.ns
-                    active = []                  # enabled, due and condition true
-                    for u in enabled:
-                        gate = gates[u]
-                        if gate is not None and gate.next > now:
-                            continue
-                        guard = guards[u]
-                        if guard is None or guard():
-                            active.append(u)
-                    if not active:
-                        self.advance(now, steps)  # to the next tick
+                    if gate is not None:
+                        gate.start(clock.ns)
+                elif conditional.isdisjoint(enabled):   # every enabled one is active
+                    n = len(enabled)
+                    if n == 1:
+                        (t,) = enabled
+                    elif n:
+                        t = sorted(enabled)[int(rnd() * n)]
+                    else:
+                        self.advance(clock.ns, steps)   # to the next tick
                         continue
-                    active.sort()
-                    t = active[int(rnd() * len(active))] if len(active) > 1 else active[0]
-                    gate = gates[t]
-                if gate is not None:
-                    gate.start(clock.ns)
-                if steps >= next_look:           # local steps alone may spin at one instant
-                    self.look(steps)
-                    next_look = self.next_look
-                if macros is not None and steps + mlen[t] <= limit:
-                    macros[t]()
+                else:
+                    t = self.scan(steps)         # its tick has started
+                    if t < 0:                    # time moved to the next tick
+                        continue
+                if steps < fast:
+                    table[t]()
                     steps += mlen[t]
+                    if tokens[final]:
+                        return self.ended(steps)
+                    continue
+                k = self.checked(t, steps)
+                fast = min(self.next_look, spare) if macros is not None else -1
+                if k:
+                    table[t]()
+                    steps += k
                 else:
                     steps += 1
                     self.fire_one(t, self.was_forced, steps)
+                if tokens[final] or steps >= limit:
+                    return self.ended(steps)
         finally:
             self.steps = steps
+
+    def scan(self, steps: int) -> int:
+        """The seeded choice among the enabled transitions that are due and whose condition
+        holds (its tick starts); -1 when there is none: time moved to the next tick. When
+        replaying: the next transition of the forced sequence."""
+        if self.forced is not None:
+            return self.choose_forced(steps)
+        gates, guards = self.gates, self.guards
+        now = self.clock.ns
+        active = []                              # enabled, due and condition true
+        for u in self.enabled:
+            gate = gates[u]
+            if gate is not None and gate.next > now:
+                continue
+            guard = guards[u]
+            if guard is None or guard():
+                active.append(u)
+        if not active:
+            self.advance(now, steps)             # to the next tick
+            return -1
+        active.sort()
+        t = active[int(self.rnd() * len(active))] if len(active) > 1 else active[0]
+        gate = gates[t]
+        if gate is not None:
+            gate.start(self.clock.ns)
+        return t
+
+    def checked(self, t: int, steps: int) -> int:
+        """A turn at or above the fast bound, before ``t`` fires: look at progress when it is
+        due (local steps alone may spin at one instant), and say how ``t`` fires: the number
+        of firings of its macro step when there are macro steps and it fits under the limit,
+        else 0 (``t`` alone)."""
+        if steps >= self.next_look:
+            self.look(steps)
+        k = self.mlen[t]
+        return k if self.macros is not None and steps + k <= self.limit else 0
 
     def ended(self, steps: int) -> tuple[int, str, str]:
         """The run ends: the system finished, or the limit of firings is reached."""
@@ -540,7 +607,7 @@ class _Deterministic:
         """Nothing can fire at ``now``: move simulated time to the next tick of an enabled
         transition or of a waiting local step, or end the run (deadlock, ``until``)."""
         timers = self.timers
-        nxt = self.sim._next_tick(now)
+        nxt = self.sim._next_tick(now) if self.enabled else None
         if timers and (nxt is None or timers[0][0] < nxt):
             nxt = timers[0][0]
         if nxt is None:
@@ -578,6 +645,8 @@ class _Deterministic:
         self.was_forced = guard is not None and not guard()
         if self.was_forced:
             self.sim.forced_count += 1
+        if gate is not None:
+            gate.start(self.clock.ns)
         return t
 
     def fire_one(self, t: int, forced: bool, steps: int) -> None:

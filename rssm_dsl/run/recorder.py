@@ -70,10 +70,8 @@ class Recorder:
         # the set points (position, velocity or None, tick of c that sent it)
         self._setpoints: list[tuple[Any, Any, int]] = []
         self._k = -1                             # index of the current set point
-        self._times: list[int] = []
-        self._which: list[int] = []
-        self._positions: list[FloatArray] = []
-        self._behaviours: list[str | None] = []
+        # one row per sample: time (ns), set point index, position, behaviour
+        self._rows: list[tuple[int, int, FloatArray, str | None]] = []
         self._q: list[FloatArray] = []
 
     def _tick(self, now: int) -> int:
@@ -106,10 +104,7 @@ class Recorder:
         behaviour = self._behaviour = control.behaviour
         if self._k >= 0:
             state = device.state                 # measured when the physics last advanced
-            self._times.append(now)
-            self._which.append(self._k)
-            self._positions.append(state["position"])
-            self._behaviours.append(behaviour)
+            self._rows.append((now, self._k, state["position"], behaviour))
             if self._keep_q:
                 self._q.append(state["q"])
         if self.stopped:
@@ -117,15 +112,16 @@ class Recorder:
                                  f"{len(self.switches)} times by t = {now / 1e9:g} s")
 
     def samples(self) -> Samples:
-        n = len(self._times)
-        t = np.array(self._times, dtype=np.float64) / 1e9
-        which = np.array(self._which, dtype=np.intp)
+        rows = self._rows
+        n = len(rows)
+        t = np.array([r[0] for r in rows], dtype=np.float64) / 1e9
+        which = np.array([r[1] for r in rows], dtype=np.intp)
         sp = self._setpoints
         p = np.array([x[0] for x in sp], dtype=np.float64).reshape(len(sp), 3)
         v = np.array([np.zeros(3) if x[1] is None else x[1] for x in sp],
                      dtype=np.float64).reshape(len(sp), 3)
         t0 = np.array([x[2] for x in sp], dtype=np.float64) / 1e9
         desired = p[which] + v[which] * (t - t0[which])[:, None]
-        actual = np.array(self._positions, dtype=np.float64).reshape(n, 3)
+        actual = np.array([r[2] for r in rows], dtype=np.float64).reshape(n, 3)
         q = np.array(self._q, dtype=np.float64).reshape(n, -1) if self._keep_q else None
-        return Samples(t, desired, actual, tuple(b or "" for b in self._behaviours), q)
+        return Samples(t, desired, actual, tuple(r[3] or "" for r in rows), q)

@@ -39,6 +39,7 @@ from .mujoco_arm import MujocoLwr4, Vector
 # flange 0.6 mm away from that point.)
 _Q2, _Q4 = -0.599242668249, 1.402190110099
 START_POSE: Vector = np.array([0.0, _Q2, 0.0, _Q4, 0.0, -_Q2 + _Q4 - math.pi, 0.0])
+_SITE = mujoco.mjtObj.mjOBJ_SITE
 
 
 class MujocoLwr4Device(DeviceBase):
@@ -80,6 +81,9 @@ class MujocoLwr4Device(DeviceBase):
         self._site_id = int(mujoco.mj_name2id(model, mujoco.mjtObj.mjOBJ_SITE, EE_FRAME))
         self._site_pos: Vector = data.site_xpos[self._site_id]
         self._vel6: Vector = np.zeros(6)
+        # what _read concatenates: fixed views (MuJoCo and mj_objectVelocity write in place)
+        self._parts: tuple[Vector, ...] = (self._qpos, self._qvel, self._site_pos,
+                                           self._vel6[3:])
         self._carry = 0.0
         self.state: dict[str, Vector] = self._read()
         self._record: TextIO | None = None
@@ -94,10 +98,8 @@ class MujocoLwr4Device(DeviceBase):
     def _read(self) -> dict[str, Vector]:
         """The current state as read-only arrays (what ``measure`` reports): views of one
         fresh, frozen copy (freezing one array costs less than freezing four)."""
-        vel6 = self._vel6
-        mujoco.mj_objectVelocity(self._model, self._data, mujoco.mjtObj.mjOBJ_SITE,
-                                 self._site_id, vel6, 0)
-        buf = np.concatenate((self._qpos, self._qvel, self._site_pos, vel6[3:]))
+        mujoco.mj_objectVelocity(self._model, self._data, _SITE, self._site_id, self._vel6, 0)
+        buf = np.concatenate(self._parts)
         buf.setflags(write=False)
         return {"q": buf[0:7], "dq": buf[7:14], "position": buf[14:17], "velocity": buf[17:20]}
 
