@@ -138,6 +138,10 @@ CODES: tuple[Code, ...] = (
     # ROS 2 packages (rssmc ros2)
     Code("E860", "not-a-ros-name", _E, "a name of the specification cannot become a ROS 2 or Python name"),
     Code("W861", "module-not-shipped", _W, "a binding's module is not shipped in the ROS 2 workspace"),
+    Code("E862", "ros-type-mismatch", _E,
+         "the ROS message type named for a buffer cannot carry the buffer's values"),
+    Code("E863", "ros-types-file", _E,
+         "the ROS types file of a specification cannot be read or names no channel's buffer"),
     # the LWR4+ experiment (rssmc run)
     Code("E870", "run-no-lwr4", _E, "no LWR4+ device, effector or set points for the experiment"),
     Code("E871", "run-option-unsupported", _E, "an option of `rssmc run` that the specification cannot honour"),

@@ -2,7 +2,8 @@
 specification's behaviours on ROS 2 with the four communication modes kept.
 
 Modules: names (checks, E860), pycode (expressions and statements to Python), msgtypes
-(message types), nodecode (the code of one node), evaluate (values known at generation
+(message types), stdtypes (standard messages of the data topics, the <spec>.ros2.toml
+types file: E862, E863), nodecode (the code of one node), evaluate (values known at generation
 time), shipping (modules of bindings), viewmodel, generator (templates/*.j2), launch_runner
 (runs generated launch files without the ROS launch system), toolchain (ROS 2 from PyPI
 wheels: venv, colcon). runtime/ is the support library copied into every workspace; it

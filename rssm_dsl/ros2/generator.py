@@ -11,7 +11,14 @@ For system S with agents a_j it writes:
   standard library;
 * ``S_<a_j>`` (ament_python) per agent: a node per subsystem, a node per device with a
   binding, ``launch/<a_j>.launch.py``, ``config/params.yaml``;
+* ``S_bringup`` (ament_python): ``launch/system.launch.py`` starting every agent's nodes in
+  their namespaces (launch argument ``domain_id``), ``config/system.yaml`` (a ``/**``
+  section common to every node, then one section per node instance);
 * ``README.md``: packages, nodes and topics.
+
+Data topics carry standard messages where the buffer's type has a counterpart
+(:mod:`rssm_dsl.ros2.stdtypes`), or the type named for the buffer in ``<spec>.ros2.toml``
+(E862 when it does not fit, E863 for a file naming no buffer).
 
 Output is deterministic (sorted, no time stamps), every file says it was generated and from
 what. Templates see only :mod:`rssm_dsl.ros2.viewmodel` records.
@@ -32,8 +39,22 @@ from rssm_dsl.filenames import file_name
 from rssm_dsl.interp.initial import InitialValues
 from rssm_dsl.pipeline import Compilation
 from rssm_dsl.pycode import comment, tuple_source
+from rssm_dsl.ros2.msgtypes import MessageTypes
 from rssm_dsl.ros2.names import NameChecker
-from rssm_dsl.ros2.viewmodel import RUNTIME_MODULES, Options, WorkspaceView, build_view
+from rssm_dsl.ros2.stdtypes import (
+    RosType,
+    explicit_diagnostic,
+    load_mapping,
+    mapping_path,
+    resolve,
+)
+from rssm_dsl.ros2.viewmodel import (
+    DATA_DIR,
+    RUNTIME_MODULES,
+    Options,
+    WorkspaceView,
+    build_view,
+)
 from rssm_dsl.syntax import ast
 
 RUNTIME_DIR = Path(__file__).resolve().parent / "runtime"
@@ -52,7 +73,8 @@ class Workspace:
     @property
     def packages(self) -> list[str]:
         v = self.view
-        return [v.interfaces.package, v.runtime.name, *(a.package.name for a in v.agents)]
+        return [v.interfaces.package, v.runtime.name, *(a.package.name for a in v.agents),
+                v.bringup.package.name]
 
 
 def _env() -> Environment:
@@ -88,11 +110,14 @@ def generate(comp: Compilation, options: Options | None = None) -> Workspace | l
     values = InitialValues(system)
     if values.diagnostics:
         return values.diagnostics
+    explicit, problems = explicit_types(comp, MessageTypes())
+    if problems:
+        return problems
     bindings = {d.id: d.binding for d in system.devices() if d.binding is not None}
     source = comp.path.name
     assert comp.hpn is not None
     view, shipment = build_view(system, comp.hpn, source, values, comp.path.resolve().parent,
-                                bindings, options or Options())
+                                bindings, options or Options(), explicit)
     files = _render(view)
     warnings = tuple(
         Diagnostic("W861", f"module '{module}' (binding \"{binding}\") is neither next to the "
@@ -100,7 +125,26 @@ def generate(comp: Compilation, options: Options | None = None) -> Workspace | l
                    system.span, "install it in the Python environment ROS 2 runs in")
         for module, binding in view.shipped_missing)
     copies = {f"{view.runtime.name}/{rel}": src for rel, src in shipment.copies.items()}
+    for agent in view.agents:
+        for name, src in agent.data_files:
+            copies[f"{agent.package.name}/{DATA_DIR}/{name}"] = src
     return Workspace(files, copies, warnings, view)
+
+
+def explicit_types(comp: Compilation, msgs: MessageTypes
+                   ) -> tuple[dict[str, RosType], list[Diagnostic]]:
+    """The ROS types named in the specification's ``<stem>.ros2.toml``, by channel id, or
+    the diagnostics of that file (E863) and of the types that do not fit (E862)."""
+    assert comp.system is not None
+    named, problems = load_mapping(comp.path, comp.system)
+    out: dict[str, RosType] = {}
+    for channel, (name, buf) in sorted(named.items()):
+        found = resolve(name, buf.type, msgs.descriptor)
+        if isinstance(found, str):
+            problems.append(explicit_diagnostic(name, buf, found, mapping_path(comp.path)))
+        else:
+            out[channel] = found
+    return out, problems
 
 
 def _render(ws: WorkspaceView) -> dict[str, str]:
@@ -139,6 +183,11 @@ def _render(ws: WorkspaceView) -> dict[str, str]:
             f"launch file of agent {agent.name}", agent=agent)
         put(f"{pkg.name}/config/params.yaml", "params.yaml.j2",
             f"parameters of agent {agent.name}", agent=agent)
+    bp = ws.bringup.package
+    _python_package(put, out, bp, f"system {ws.system}: its launch file and parameters")
+    put(f"{bp.name}/launch/system.launch.py", "system.launch.py.j2",
+        f"launch file of system {ws.system}")
+    put(f"{bp.name}/config/system.yaml", "system.yaml.j2", f"parameters of system {ws.system}")
     return dict(sorted(out.items()))
 
 

@@ -8,12 +8,17 @@ arguments, then starts one process per ``Node`` exactly as ``ros2 launch`` would
     <prefix of PACKAGE>/lib/PACKAGE/EXECUTABLE [ARGUMENTS] --ros-args
         -r __node:=NAME -r __ns:=/NAMESPACE [-r FROM:=TO ...] --params-file FILE ...
 
-It understands the subset of the launch API the generator emits (``Node`` with package,
-executable, name, namespace, parameters, arguments, remappings, output) and refuses anything
-else. It depends on the standard library only, so any Python 3.11 can run it in the
-environment of a built workspace (``. install/setup.bash``):
+It understands the subset of the launch API the generator emits and refuses anything else:
+``Node`` (package, executable, name, namespace, parameters, arguments, remappings, output),
+``DeclareLaunchArgument`` (name, default_value, description), ``SetEnvironmentVariable``
+(name, value: it applies to the nodes after it), and the substitutions
+``LaunchConfiguration`` (a launch argument's value) and ``EnvironmentVariable`` (name,
+default_value). Launch arguments are given as ``NAME:=VALUE`` after the files, as to
+``ros2 launch``. It depends on the standard library only, so any Python 3.11 can run it in
+the environment of a built workspace (``. install/setup.bash``):
 
     python -m rssm_dsl.ros2.launch_runner install/PKG/share/PKG/launch/AGENT.launch.py ...
+    python -m rssm_dsl.ros2.launch_runner install/S_bringup/share/S_bringup/launch/system.launch.py domain_id:=7
     python rssm_dsl/ros2/launch_runner.py --dry-run FILE ...      # print the commands
 
 Options: ``--duration S`` stops the nodes after S seconds (SIGINT, then SIGKILL after
@@ -67,6 +72,93 @@ class NodeAction:
         return f"/{ns}/{name}" if ns else f"/{name}"
 
 
+@dataclass(frozen=True)
+class Context:
+    """What substitutions are evaluated against: the launch arguments' values and the
+    environment the nodes will get."""
+
+    arguments: dict[str, str]
+    env: dict[str, str]
+
+
+class Substitution:
+    def perform(self, context: Context) -> str:
+        raise NotImplementedError
+
+
+@dataclass(frozen=True)
+class LaunchConfiguration(Substitution):
+    name: str
+
+    def perform(self, context: Context) -> str:
+        if self.name not in context.arguments:
+            raise LaunchError(f"launch argument '{self.name}' is not declared before its use")
+        return context.arguments[self.name]
+
+
+@dataclass(frozen=True)
+class EnvironmentVariable(Substitution):
+    name: str
+    default_value: Any = ""
+
+    def perform(self, context: Context) -> str:
+        value = context.env.get(self.name)
+        return value if value is not None else text(self.default_value, context)
+
+
+def text(value: Any, context: Context) -> str:
+    """A launch value: a string, a substitution, or a list of them (concatenated)."""
+    if isinstance(value, Substitution):
+        return value.perform(context)
+    if isinstance(value, list | tuple):
+        return "".join(text(v, context) for v in value)
+    if isinstance(value, str):
+        return value
+    raise LaunchError(f"a launch value must be a string or a substitution, not "
+                      f"{type(value).__name__}")
+
+
+@dataclass(frozen=True)
+class DeclareLaunchArgument:
+    name: str
+    default_value: Any = None
+    description: str = ""
+
+
+@dataclass(frozen=True)
+class SetEnvironmentVariable:
+    name: Any
+    value: Any
+
+
+def _check_kwargs(what: str, kwargs: dict[str, Any], allowed: set[str]) -> None:
+    unknown = set(kwargs) - allowed
+    if unknown:
+        raise LaunchError(f"{what}({', '.join(sorted(unknown))}=...) is not supported by the "
+                          "launch runner")
+
+
+def _declare(name: str, **kwargs: Any) -> DeclareLaunchArgument:
+    _check_kwargs("DeclareLaunchArgument", kwargs, {"default_value", "description"})
+    return DeclareLaunchArgument(str(name), kwargs.get("default_value"),
+                                 str(kwargs.get("description", "")))
+
+
+def _set_env(name: Any, value: Any, **kwargs: Any) -> SetEnvironmentVariable:
+    _check_kwargs("SetEnvironmentVariable", kwargs, set())
+    return SetEnvironmentVariable(name, value)
+
+
+def _configuration(name: str, **kwargs: Any) -> LaunchConfiguration:
+    _check_kwargs("LaunchConfiguration", kwargs, set())
+    return LaunchConfiguration(str(name))
+
+
+def _environment(name: str, **kwargs: Any) -> EnvironmentVariable:
+    _check_kwargs("EnvironmentVariable", kwargs, {"default_value"})
+    return EnvironmentVariable(str(name), kwargs.get("default_value", ""))
+
+
 class _LaunchDescription:
     def __init__(self, entities: Sequence[Any] = ()) -> None:
         self.entities = list(entities)
@@ -103,11 +195,21 @@ def package_prefix(package: str) -> Path:
 def _stub_modules() -> dict[str, types.ModuleType]:
     launch = types.ModuleType("launch")
     launch.LaunchDescription = _LaunchDescription  # type: ignore[attr-defined]
+    launch_actions = types.ModuleType("launch.actions")
+    launch_actions.DeclareLaunchArgument = _declare  # type: ignore[attr-defined]
+    launch_actions.SetEnvironmentVariable = _set_env  # type: ignore[attr-defined]
+    substitutions = types.ModuleType("launch.substitutions")
+    substitutions.LaunchConfiguration = _configuration  # type: ignore[attr-defined]
+    substitutions.EnvironmentVariable = _environment  # type: ignore[attr-defined]
+    launch.actions = launch_actions  # type: ignore[attr-defined]
+    launch.substitutions = substitutions  # type: ignore[attr-defined]
     launch_ros = types.ModuleType("launch_ros")
     actions = types.ModuleType("launch_ros.actions")
     actions.Node = _node  # type: ignore[attr-defined]
     launch_ros.actions = actions  # type: ignore[attr-defined]
-    mods = {"launch": launch, "launch_ros": launch_ros, "launch_ros.actions": actions}
+    mods = {"launch": launch, "launch.actions": launch_actions,
+            "launch.substitutions": substitutions, "launch_ros": launch_ros,
+            "launch_ros.actions": actions}
     if importlib.util.find_spec("ament_index_python") is None:
         ament = types.ModuleType("ament_index_python")
         packages = types.ModuleType("ament_index_python.packages")
@@ -119,8 +221,17 @@ def _stub_modules() -> dict[str, types.ModuleType]:
     return mods
 
 
+Action = NodeAction | DeclareLaunchArgument | SetEnvironmentVariable
+
+
 def load_launch_file(path: Path) -> list[NodeAction]:
     """The nodes a launch file describes (its generate_launch_description() is run)."""
+    return [a for a in load_actions(path) if isinstance(a, NodeAction)]
+
+
+def load_actions(path: Path) -> list[Action]:
+    """The actions a launch file describes, in order (its generate_launch_description() is
+    run)."""
     if not path.is_file():
         raise LaunchError(f"{path}: no such launch file")
     saved = {name: sys.modules.get(name) for name in _stub_modules()}
@@ -143,13 +254,45 @@ def load_launch_file(path: Path) -> list[NodeAction]:
     if not isinstance(description, _LaunchDescription):
         raise LaunchError(f"{path}: generate_launch_description() must return a "
                           "LaunchDescription")
-    nodes = []
+    actions: list[Action] = []
     for entity in description.entities:
-        if not isinstance(entity, NodeAction):
-            raise LaunchError(f"{path}: only Node actions are supported, not "
+        if not isinstance(entity, NodeAction | DeclareLaunchArgument | SetEnvironmentVariable):
+            raise LaunchError(f"{path}: only Node, DeclareLaunchArgument and "
+                              f"SetEnvironmentVariable actions are supported, not "
                               f"{type(entity).__name__}")
-        nodes.append(entity)
-    return nodes
+        actions.append(entity)
+    return actions
+
+
+def plan(files: Sequence[Path], arguments: dict[str, str] | None = None,
+         env: dict[str, str] | None = None) -> list[tuple[NodeAction, dict[str, str]]]:
+    """Every node of the launch files and the environment it is started with: the launch
+    arguments (``arguments`` over the declared defaults) evaluated, the environment
+    variables set before it applied."""
+    given = dict(arguments or {})
+    context = Context({}, dict(os.environ if env is None else env))
+    out: list[tuple[NodeAction, dict[str, str]]] = []
+    declared: set[str] = set()
+    for f in files:
+        for action in load_actions(f):
+            if isinstance(action, DeclareLaunchArgument):
+                declared.add(action.name)
+                if action.name in given:
+                    context.arguments[action.name] = given[action.name]
+                elif action.default_value is not None:
+                    context.arguments[action.name] = text(action.default_value, context)
+                else:
+                    raise LaunchError(f"launch argument '{action.name}' has no default: "
+                                      f"give it as {action.name}:=VALUE")
+            elif isinstance(action, SetEnvironmentVariable):
+                context.env[text(action.name, context)] = text(action.value, context)
+            else:
+                out.append((action, dict(context.env)))
+    unknown = sorted(set(given) - declared)
+    if unknown:
+        raise LaunchError(f"launch argument(s) {', '.join(unknown)} not declared by the "
+                          "launch file(s)")
+    return out
 
 
 def command(node: NodeAction, extra: Sequence[str] = ()) -> list[str]:
@@ -185,12 +328,14 @@ def _extra(params: Sequence[str], fqn: str) -> list[str]:
 
 
 def run(files: Sequence[Path], duration: float | None = None, grace: float = 10.0,
-        log_dir: Path | None = None, params: Sequence[str] = (), dry_run: bool = False) -> int:
-    nodes = [n for f in files for n in load_launch_file(f)]
-    cmds = [(n, command(n, _extra(params, n.fqn))) for n in nodes]
+        log_dir: Path | None = None, params: Sequence[str] = (), dry_run: bool = False,
+        arguments: dict[str, str] | None = None) -> int:
+    planned = plan(files, arguments)
+    cmds = [(n, command(n, _extra(params, n.fqn)), env) for n, env in planned]
     if dry_run:
-        for n, cmd in cmds:
-            print(json.dumps({"node": n.fqn, "command": cmd}))
+        for n, cmd, env in cmds:
+            changed = {k: v for k, v in env.items() if os.environ.get(k) != v}
+            print(json.dumps({"node": n.fqn, "command": cmd, "env": changed}))
         return 0
     procs: list[tuple[NodeAction, subprocess.Popen[bytes]]] = []
     logs = []
@@ -203,13 +348,14 @@ def run(files: Sequence[Path], duration: float | None = None, grace: float = 10.
     old_int = signal.signal(signal.SIGINT, stop)
     old_term = signal.signal(signal.SIGTERM, stop)
     try:
-        for n, cmd in cmds:
+        for n, cmd, env in cmds:
             out: Any = None
             if log_dir is not None:
                 log_dir.mkdir(parents=True, exist_ok=True)
                 out = open(log_dir / (n.fqn.strip("/").replace("/", ".") + ".log"), "wb")  # noqa: SIM115
                 logs.append(out)
-            procs.append((n, subprocess.Popen(cmd, stdout=out, stderr=subprocess.STDOUT
+            procs.append((n, subprocess.Popen(cmd, env=env, stdout=out,
+                                              stderr=subprocess.STDOUT
                                               if out is not None else None)))
         end = None if duration is None else time.monotonic() + duration
         timed_out = False
@@ -251,7 +397,8 @@ def _terminate(procs: list[tuple[NodeAction, subprocess.Popen[bytes]]], grace: f
 def main(argv: Sequence[str] | None = None) -> int:
     ap = argparse.ArgumentParser(prog="launch_runner", description=__doc__.split("\n\n")[0],
                                  formatter_class=argparse.RawDescriptionHelpFormatter)
-    ap.add_argument("files", nargs="+", type=Path, help="launch files (*.launch.py)")
+    ap.add_argument("files", nargs="+",
+                    help="launch files (*.launch.py), then launch arguments NAME:=VALUE")
     ap.add_argument("--duration", type=float, help="stop the nodes after this many seconds")
     ap.add_argument("--grace", type=float, default=10.0,
                     help="seconds between SIGINT and SIGKILL when stopping")
@@ -260,9 +407,11 @@ def main(argv: Sequence[str] | None = None) -> int:
                     metavar="NODE:NAME:=VALUE", help="set a parameter of a node (or *)")
     ap.add_argument("--dry-run", action="store_true", help="print the commands, start nothing")
     args = ap.parse_args(argv)
+    files = [Path(f) for f in args.files if ":=" not in f]
+    arguments = dict(f.split(":=", 1) for f in args.files if ":=" in f)
     try:
-        return run(args.files, args.duration, args.grace, args.log_dir, args.params,
-                   args.dry_run)
+        return run(files, args.duration, args.grace, args.log_dir, args.params,
+                   args.dry_run, arguments)
     except LaunchError as e:
         print(f"launch_runner: {e}", file=sys.stderr)
         return 2

@@ -1,12 +1,12 @@
 """ROS 2 message types for the system's data (the ``<system>_interfaces`` package).
 
-| RSSM type        | message field type                 | sample message of a channel        |
+| RSSM type        | message field type                 | generated data message of a channel |
 |------------------|------------------------------------|------------------------------------|
-| bool/int/float   | bool / int64 / float64             | BoolSample, Int64Sample, Float64Sample |
-| range lo..hi     | int64                              | Int64Sample                         |
+| bool/int/float   | bool / int64 / float64             | (std_msgs: Bool, Int64, Float64)    |
+| range lo..hi     | int64                              | (std_msgs/Int64)                    |
 | enum E           | uint8, with a constant per member  | ESample                             |
 | T[N], T scalar   | bool[N] / int64[N] / float64[N]    | Float64Array7Sample, ...            |
-| record R         | message R (CamelCase of the name)  | RSample                             |
+| record R         | message R (CamelCase of the name)  | R itself                            |
 | R[N]             | R[N]                               | RArray4Sample                       |
 | T[N][M]          | TArrayN[M] (see below)             | TArrayNArrayMSample                 |
 
@@ -19,9 +19,11 @@ an ``int64`` (it is an int; the producer checked it when it was stored).
 ROS 2 arrays do not nest: the inner array of T[N][M] is a wrapper message TArrayN with one
 field ``items``.
 
-Every channel's data topic carries its type's sample message: ``uint32 epoch``, ``uint64
-seq``, ``value``; blocking producers get ``Ack`` (``epoch``, ``seq``) back; every subsystem
-publishes ``SubsystemStatus`` on its diagnostics topic.
+A channel whose type has no standard counterpart (:mod:`rssm_dsl.ros2.stdtypes`) carries
+its record's message, or a ``<Type>Sample`` with the one field ``value``; next to the data
+topic, every producer publishes ``SampleInfo`` (``epoch``, ``seq``, ``digest``), blocking
+producers get ``Ack`` (``epoch``, ``seq``) back; every subsystem publishes
+``SubsystemStatus`` on its diagnostics topic.
 """
 
 from __future__ import annotations
@@ -38,6 +40,11 @@ SCALAR_NAME = {"bool": "Bool", "int": "Int64", "float": "Float64"}
 
 ACK_FIELDS = (("uint32", "epoch", "the producer's epoch (a random number drawn at its start)"),
               ("uint64", "seq", "the sample taken"))
+INFO_FIELDS = (
+    ("uint32", "epoch", "the producer's epoch (a random number drawn at its start)"),
+    ("uint64", "seq", "the producer's sample number, from 1"),
+    ("uint64", "digest", "64 bits of BLAKE2b over the content of the data message it describes"),
+)
 STATUS_FIELDS = (
     ("builtin_interfaces/Time", "stamp", ""),
     ("string", "subsystem", "the subsystem's id, e.g. a1.c"),
@@ -174,6 +181,14 @@ class MessageTypes:
             self.field_type(t)
         return name
 
+    def data_message(self, t: Type, msg: str = "_msg") -> tuple[str, str]:
+        """The generated message of a data topic of type ``t`` (a record's own message, else
+        ``<Type>Sample``) and its message descriptor, both as Python source."""
+        if isinstance(t, RecordT):
+            return f"{msg}.{self.type_name(t)}", self.descriptor(t, msg)
+        name = self.sample(t)
+        return f"{msg}.{name}", f"('msg', {msg}.{name}, 'value', {self.descriptor(t, msg)})"
+
     # ------------------------------------------------------------------ descriptors
     def descriptor(self, t: Type, msg: str = "_msg") -> str:
         """The message descriptor (rssm_dsl/ros2/runtime/messages.py) of ``t`` as Python
@@ -203,10 +218,11 @@ class MessageTypes:
                                "do not nest)", (MsgField(self.field_type(arr), "items"),),
                                self._constants([arr])))
         for name, t in self.samples.items():
-            out.append(MsgView(name, f"one sample of a channel of type {t}", (
-                MsgField("uint32", "epoch", "the producer's epoch (random, drawn at its start)"),
-                MsgField("uint64", "seq", "the producer's sample number, from 1"),
-                MsgField(self.field_type(t), "value")), self._constants([t])))
+            out.append(MsgView(name, f"the value of a channel of type {t} (its epoch and "
+                               "sequence number travel in SampleInfo on <topic>/info)",
+                               (MsgField(self.field_type(t), "value"),), self._constants([t])))
+        out.append(MsgView("SampleInfo", "a producer published a sample on the data topic "
+                           "<topic> (on <topic>/info)", tuple(MsgField(*f) for f in INFO_FIELDS)))
         out.append(MsgView("Ack", "a consumer took a sample of a blocking producer",
                            tuple(MsgField(*f) for f in ACK_FIELDS)))
         out.append(MsgView("SubsystemStatus", "the diagnostics of a subsystem node",

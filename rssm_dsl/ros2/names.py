@@ -51,8 +51,9 @@ CPP_KEYWORDS = frozenset((
     "typename", "union", "unsigned", "using", "virtual", "void", "volatile", "wchar_t",
     "while", "xor", "xor_eq",
 ))
-RESERVED_PACKAGES = ("interfaces", "runtime")
-GENERATED_MSGS = ("Ack", "SubsystemStatus")
+BRINGUP = "bringup"
+RESERVED_PACKAGES = ("interfaces", "runtime", BRINGUP)
+GENERATED_MSGS = ("Ack", "SampleInfo", "SubsystemStatus")
 
 
 def pascal(name: str) -> str:
@@ -192,7 +193,8 @@ class NameChecker:
                     or re.search(r"Array[0-9]+\Z", msg):
                 self.error(f"record {record.name} cannot become ROS 2 message '{msg}'", span,
                            "message names are CamelCase letters and digits; Ack, "
-                           "SubsystemStatus, *Sample and *Array<N> are the generator's")
+                           "SampleInfo, SubsystemStatus, *Sample and *Array<N> are the "
+                           "generator's")
             elif msg in seen and seen[msg] != record.name:
                 self.error(f"records {seen[msg]} and {record.name} both become message "
                            f"'{msg}'", span, "rename one of them")

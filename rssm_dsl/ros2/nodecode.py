@@ -28,6 +28,8 @@ from rssm_dsl.pycode import (
     var,
 )
 from rssm_dsl.ros2.msgtypes import MessageTypes
+from rssm_dsl.ros2.stdtypes import PACKAGES as STD_PACKAGES
+from rssm_dsl.ros2.stdtypes import RosType, default_name, resolve
 from rssm_dsl.semantics.behaviours import combination_text
 from rssm_dsl.semantics.model import (
     Arrangement,
@@ -56,7 +58,10 @@ class ChannelView:
     buffer: str
     channel: str
     topic: str
-    sample: str
+    msg: str              # Python source of the data message class (_std_msgs.Float64, ...)
+    ros_type: str         # its ROS name, std_msgs/msg/Float64 or <system>_interfaces/msg/X
+    package: str          # the package of the message (std_msgs, ..., <system>_interfaces)
+    stamped: bool         # a std_msgs/Header the producer stamps
     desc: str
     pairing: str          # the member of rssm_core.modes.Pairing
     modes: str
@@ -111,6 +116,7 @@ class NodeView:
     params: tuple[ParamView, ...]
     inputs: tuple[ChannelView, ...]
     outputs: tuple[ChannelView, ...]
+    ros_imports: tuple[str, ...]      # standard message packages the channels use
 
 
 @dataclass(frozen=True)
@@ -136,6 +142,8 @@ class DeviceView:
     channels_out: tuple[ChannelView, ...]
     initial: tuple[tuple[str, str], ...]        # (buffer, Python literal)
     params: tuple[ParamView, ...]
+    package: str                                # the agent's package (share/<package>/data)
+    ros_imports: tuple[str, ...]
 
 
 def node_name(kind_letter: str, name: str) -> str:
@@ -168,12 +176,31 @@ def mask_of(case: DataCase) -> int:
     return sum(1 << k for k, v in enumerate(case.new) if v)
 
 
+@dataclass(frozen=True)
+class Wire:
+    """What a channel's data topic carries (see :mod:`rssm_dsl.ros2.stdtypes`)."""
+
+    msg: str              # Python source of the message class
+    ros_type: str
+    package: str
+    desc: str             # Python source of its message descriptor
+    stamped: bool
+
+
+def ros_imports(channels: tuple[ChannelView, ...]) -> tuple[str, ...]:
+    return tuple(sorted({c.package for c in channels if c.package in STD_PACKAGES}))
+
+
 class Context:
     """What every node of the system shares: constants, externs, message types, owners."""
 
     def __init__(self, system: System, hpn: HPN, msgs: MessageTypes,
-                 values: Callable[[str, Variable], Any]) -> None:
+                 values: Callable[[str, Variable], Any], interfaces: str = "",
+                 explicit: Mapping[str, RosType] | None = None) -> None:
         self.system = system
+        self.interfaces = interfaces
+        self.explicit = dict(explicit or {})     # channel id -> the ROS type named for it
+        self.wires: dict[str, Wire] = {}
         self.hpn = hpn
         self.behaviour_pages = {(p.owner, p.behaviour): p for p in hpn.pages.values()
                                 if p.kind is PageKind.BEHAVIOUR}
@@ -191,14 +218,33 @@ class Context:
         agent, node = self.owner_node[ch.producer.owner]
         return f"/{agent}/{node}/{ch.producer.name}"
 
+    def wire(self, ch: Channel) -> Wire:
+        """The data message of a channel: the ROS type named for it, else the default
+        standard type of its buffer type, else the generated message."""
+        if ch.id not in self.wires:
+            t = ch.producer.type
+            std = self.explicit.get(ch.id)
+            if std is None:
+                name = default_name(t)
+                found = resolve(name, t, self.msgs.descriptor) if name is not None else None
+                std = found if isinstance(found, RosType) else None
+            if std is not None:
+                wire = Wire(std.cls, std.full, std.package, std.desc, std.stamped)
+            else:
+                cls, desc = self.msgs.data_message(t)
+                name = cls.split(".", 1)[1]
+                wire = Wire(cls, f"{self.interfaces}/msg/{name}", self.interfaces, desc, False)
+            self.wires[ch.id] = wire
+        return self.wires[ch.id]
+
     def channel_view(self, buf: Buffer, types: TypeTable, descs: dict[str, str]) -> ChannelView:
         ch = self.system.channel_of(buf)
         assert ch is not None
-        sample = self.msgs.sample(buf.type)
-        src = self.msgs.descriptor(buf.type)
-        if src not in descs:
-            descs[src] = f"M{len(descs)}"
-        return ChannelView(buf.name, ch.id, self.topic(ch), sample, descs[src],
+        wire = self.wire(ch)
+        if wire.desc not in descs:
+            descs[wire.desc] = f"M{len(descs)}"
+        return ChannelView(buf.name, ch.id, self.topic(ch), wire.msg, wire.ros_type,
+                           wire.package, wire.stamped, descs[wire.desc],
                            pairing(ch.producer.mode, ch.consumer.mode).name, ch.modes)
 
 
@@ -405,7 +451,7 @@ class SubsystemCode:
             tuple(self.types.desc_lines()), tuple(self.types.converter_lines()),
             tuple(f"{name} = {src}" for src, name in self.descs.items()), externs,
             tuple(consts), slots, tuple(initial), tuple(self.functions), behaviours, start,
-            params, inputs, outputs)
+            params, inputs, outputs, ros_imports((*inputs, *outputs)))
 
     def _uses_consts(self) -> bool:
         return bool(self.ctx.system.consts)
@@ -424,7 +470,7 @@ class DeviceCode:
         self.types = TypeTable()
         self.descs: dict[str, str] = {}
 
-    def build(self, initial: Mapping[str, Any]) -> DeviceView:
+    def build(self, initial: Mapping[str, Any], package: str = "") -> DeviceView:
         d = self.dev
         ctx = self.ctx
         connected = [b for b in (*d.inputs, *d.outputs) if ctx.system.channel_of(b) is not None]
@@ -442,4 +488,5 @@ class DeviceCode:
             tuple(f"{name} = {src}" for src, name in self.descs.items()), inputs, outputs,
             tuple(chans[b.name] for b in d.inputs if b.name in chans),
             tuple(chans[b.name] for b in d.outputs if b.name in chans),
-            tuple((n, literal(v)) for n, v in initial.items()), params)
+            tuple((n, literal(v)) for n, v in initial.items()), params, package,
+            ros_imports(tuple(chans.values())))

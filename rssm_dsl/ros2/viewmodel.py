@@ -16,6 +16,7 @@ from rssm_dsl.bindings import binding_dirs
 from rssm_dsl.hpn.ir import HPN
 from rssm_dsl.interp.initial import InitialValues
 from rssm_dsl.ros2.msgtypes import MessageTypes, MsgView
+from rssm_dsl.ros2.names import BRINGUP
 from rssm_dsl.ros2.nodecode import (
     ChannelView,
     Context,
@@ -26,10 +27,12 @@ from rssm_dsl.ros2.nodecode import (
     node_name,
 )
 from rssm_dsl.ros2.shipping import Shipment, ship
+from rssm_dsl.ros2.stdtypes import RosType
 from rssm_dsl.semantics.model import System, Variable
 from rssm_dsl.semantics.types import ArrayT, EnumT, RangeT, RecordT, Scalar, Type
 
 VERSION = "0.1.0"
+DATA_DIR = "data"        # share/<agent package>/data: the devices' files (runtime/device.py)
 RUNTIME_MODULES = ("messages", "channels", "params", "loop", "subsystem", "device",
                    "bindings")
 
@@ -83,6 +86,15 @@ class AgentView:
     vendor_devices: tuple[VendorDevice, ...]     # devices without a binding: no node
     launch: tuple[LaunchNode, ...]
     params: tuple[str, ...]                      # lines of config/params.yaml
+    instance_params: tuple[str, ...]             # its nodes' sections of system.yaml
+    data_files: tuple[tuple[str, Path], ...]     # (file name, source): share/<pkg>/data
+
+
+@dataclass(frozen=True)
+class BringupView:
+    """The system's package: launch/system.launch.py and config/system.yaml."""
+
+    package: PythonPackageView
 
 
 @dataclass(frozen=True)
@@ -94,6 +106,7 @@ class WorkspaceView:
     interfaces: InterfacesView
     runtime: PythonPackageView
     agents: tuple[AgentView, ...]
+    bringup: BringupView
     shipped_missing: tuple[tuple[str, str], ...]   # (module, binding) expected installed
 
 
@@ -135,18 +148,34 @@ def _param_lines(name: str, t: Type, value: Any, indent: str) -> list[str]:
     return lines
 
 
+COMMON_RUNTIME = ("diagnostics_period: 0.1", "resend_period: 1.0", "linger: 1.0")
+
+
+def _header_lines(outputs: tuple[ChannelView, ...]) -> list[str]:
+    """rssm.frame_id.<buffer> of the stamped outputs (rssm.joint_names.<buffer> is left to
+    its default, joint_1 .. joint_N)."""
+    stamped = [c.buffer for c in outputs if c.stamped]
+    if not stamped:
+        return []
+    return ["      frame_id:", *(f"        {b}: ''" for b in stamped)]
+
+
 def params_yaml(fq_node: str, params: list[tuple[Variable, Any]],
-                frequency: float | None, device: bool = False) -> list[str]:
+                frequency: float | None, device: bool = False,
+                outputs: tuple[ChannelView, ...] = ()) -> list[str]:
+    """A node's section of a parameters file. (No file has a ``/**`` section: rcl applies a
+    file's sections in order and puts ``-p`` overrides into ``/**``, so a ``/**`` section
+    before the node's would make ``-p NAME:=VALUE`` lose to the node's own section.)"""
     lines = [f"{fq_node}:", "  ros__parameters:"]
     for p, value in params:
         lines += _param_lines(p.name, p.type, value, "    ")
     lines += ["    rssm:", f"      rate_hz: {yaml_scalar(float(frequency or 0.0))}"]
     if device:
-        lines += ["      resend_period: 1.0", "      options: ''", "      base_dir: ''"]
+        lines += ["      resend_period: 1.0", "      options: ''",
+                  "      base_dir: ''  # '': share/<package>/data of the agent's package"]
     else:
-        lines += ["      diagnostics_period: 0.1", "      resend_period: 1.0",
-                  "      linger: 1.0", "      trace_file: ''"]
-    return lines
+        lines += [f"      {x}" for x in COMMON_RUNTIME] + ["      trace_file: ''"]
+    return lines + _header_lines(outputs)
 
 
 # ---------------------------------------------------------------- the workspace
@@ -170,15 +199,17 @@ def _python_package(name: str, description: str, depends: tuple[str, ...],
 
 
 def build_view(system: System, hpn: HPN, source: str, values: InitialValues, folder: Path,
-               bindings: dict[str, str], options: Options) -> tuple[WorkspaceView, Shipment]:
+               bindings: dict[str, str], options: Options,
+               explicit: dict[str, RosType] | None = None) -> tuple[WorkspaceView, Shipment]:
     """The workspace of ``system`` and the files it ships from ``folder`` (the
     specification's) or the standard library. ``bindings`` maps each device id that gets a
-    node to its binding."""
+    node to its binding; ``explicit`` the channels to the ROS types named for them."""
     prefix = system.name.lower()
     interfaces = f"{prefix}_interfaces"
     runtime = f"{prefix}_runtime"
     msgs = MessageTypes()
-    ctx = Context(system, hpn, msgs, lambda owner, p: values.param(owner, p))
+    ctx = Context(system, hpn, msgs, lambda owner, p: values.param(owner, p), interfaces,
+                  explicit)
     agents: list[AgentView] = []
     for agent in system.agents:
         package = f"{prefix}_{agent.name.lower()}"
@@ -195,31 +226,45 @@ def build_view(system: System, hpn: HPN, source: str, values: InitialValues, fol
                 vendor.append(VendorDevice(dev.id, dev.device_type, chans))
                 continue
             initial = {b.name: values.buffer(dev.id, b.name) for b in (*dev.inputs, *dev.outputs)}
-            devices.append(DeviceCode(ctx, dev, agent.name, binding).build(initial))
+            devices.append(DeviceCode(ctx, dev, agent.name, binding).build(initial, package))
         launch = tuple(LaunchNode(n.executable, n.node, agent.name, f"subsystem {n.id}")
                        for n in nodes) + tuple(
             LaunchNode(d.executable, d.node, agent.name, f"device {d.id} ({d.device_type})")
             for d in devices)
         yaml: list[str] = []
-        for sub in agent.subsystems:
+        instance: list[str] = []
+        for sub, node in zip(agent.subsystems, nodes, strict=True):
             fq = f"/{agent.name}/{node_name(sub.letter, sub.name)}"
-            yaml += params_yaml(fq, [(p, values.param(sub.id, p)) for p in sub.params],
-                                sub.frequency)
+            values_of = [(p, values.param(sub.id, p)) for p in sub.params]
+            yaml += params_yaml(fq, values_of, sub.frequency, outputs=node.outputs)
+            instance += params_yaml(fq, values_of, sub.frequency, outputs=node.outputs)
+        by_id = {d.id: d for d in devices}
         for dev in agent.devices:
             if dev.id in bindings:
                 fq = f"/{agent.name}/{node_name(dev.letter, dev.name)}"
-                yaml += params_yaml(fq, [(p, values.param(dev.id, p)) for p in dev.params],
-                                    dev.frequency, device=True)
+                values_of = [(p, values.param(dev.id, p)) for p in dev.params]
+                outs = by_id[dev.id].channels_out
+                yaml += params_yaml(fq, values_of, dev.frequency, device=True, outputs=outs)
+                instance += params_yaml(fq, values_of, dev.frequency, device=True,
+                                        outputs=outs)
+        data = tuple(sorted({(f"{d.name}.csv", folder / f"{d.name}.csv") for d in agent.devices
+                             if d.id in bindings and (folder / f"{d.name}.csv").is_file()}))
         scripts = tuple((n.executable, f"{package}.{n.module}:main") for n in nodes) + tuple(
             (d.executable, f"{package}.{d.module}:main") for d in devices)
+        std = sorted({p for n in nodes for p in n.ros_imports}
+                     | {p for d in devices for p in d.ros_imports})
+        extra: tuple[tuple[str, tuple[str, ...]], ...] = (
+            (f"share/{package}/launch", (f"launch/{agent.name}.launch.py",)),
+            (f"share/{package}/config", ("config/params.yaml",)))
+        if data:
+            extra += ((f"share/{package}/{DATA_DIR}",
+                       tuple(f"{DATA_DIR}/{name}" for name, _ in data)),)
         pkg = _python_package(
             package, f"Agent {agent.name} of system {system.name}: one node per subsystem "
             "(generated by rssmc)", ("rclpy", "ament_index_python", "python3-numpy",
-                                     interfaces, runtime),
-            ((f"share/{package}/launch", (f"launch/{agent.name}.launch.py",)),
-             (f"share/{package}/config", ("config/params.yaml",))), scripts)
+                                     *std, interfaces, runtime), extra, scripts)
         agents.append(AgentView(agent.name, pkg, nodes, tuple(devices), tuple(vendor), launch,
-                                tuple(yaml)))
+                                tuple(yaml), tuple(instance), data))
     used = {e.name for a in agents for n in a.nodes for e in n.externs}
     modules: dict[str, tuple[str, list[Path]]] = {}
     for ext in system.externs:
@@ -235,7 +280,14 @@ def build_view(system: System, hpn: HPN, source: str, values: InitialValues, fol
         runtime, f"Run-time support of the nodes of system {system.name}: communication "
         "modes, the behaviour pattern, and the external operations' modules (generated by "
         "rssmc)", ("rclpy", "python3-numpy", "rcl_interfaces"), shipment=shipment)
+    bringup_name = f"{prefix}_{BRINGUP}"
+    bringup = BringupView(_python_package(
+        bringup_name, f"System {system.name}: one launch file starting every agent's nodes, "
+        "with the parameters of config/system.yaml (generated by rssmc)",
+        ("ament_index_python", *(a.package.name for a in agents)),
+        ((f"share/{bringup_name}/launch", ("launch/system.launch.py",)),
+         (f"share/{bringup_name}/config", ("config/system.yaml",)))))
     view = WorkspaceView(system.name, source, options, VERSION,
                          InterfacesView(interfaces, tuple(msgs.views())), runtime_pkg,
-                         tuple(agents), tuple(sorted(shipment.missing.items())))
+                         tuple(agents), bringup, tuple(sorted(shipment.missing.items())))
     return view, shipment

@@ -1,7 +1,10 @@
 """A device that replays measurements from a CSV file (a recorded camera, a logged sensor).
 
-Options: ``file`` (default ``<device name>.csv`` next to the specification), ``at_end``
-(``hold`` the last row, the default, or ``loop``).
+Options: ``file`` (default ``<device name>.csv``), ``at_end`` (``hold`` the last row, the
+default, or ``loop``). A relative ``file`` is looked up in the device's base folder, made
+absolute when the device starts: the specification's folder in the interpreter; in a ROS 2
+device node, the agent package's ``share/<package>/data`` folder, where `rssmc ros2` installs
+``<device name>.csv``, or the node's parameter ``rssm.base_dir`` (docs/ros2.md).
 
 The header names the leaves of the output buffers: ``distance`` for a scalar output,
 ``blob.x`` for a record field, ``pose[2]`` for an array element, nested as needed
@@ -71,14 +74,16 @@ class CsvReplay(DeviceBase):
         super().__init__(spec)
         path = Path(spec.options.get("file") or f"{spec.name}.csv")
         if not path.is_absolute():
-            path = spec.base_dir / path
+            path = Path(spec.base_dir).resolve() / path
         self.path = path
         self.loop = spec.options.get("at_end", "hold") == "loop"
         try:
             with path.open(newline="", encoding="utf-8") as f:
                 rows = [r for r in csv.reader(f) if r and any(c.strip() for c in r)]
         except OSError as e:
-            raise DeviceConfigError(f"cannot read {path}: {e.strerror or e}") from e
+            raise DeviceConfigError(f"cannot read {path}: {e.strerror or e} (a relative file is "
+                                    f"looked up in the device's base folder "
+                                    f"{Path(spec.base_dir).resolve()})") from e
         if len(rows) < 2:
             raise DeviceConfigError(f"{path} needs a header row and at least one data row")
         header = [h.strip() for h in rows[0]]

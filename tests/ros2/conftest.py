@@ -37,6 +37,9 @@ class Built:
     def launch_file(self, package: str, agent: str) -> Path:
         return self.root / "install" / package / "share" / package / "launch" / f"{agent}.launch.py"
 
+    def system_launch_file(self, system: str) -> Path:
+        return self.launch_file(f"{system}_bringup", "system")
+
 
 @pytest.fixture(scope="session")
 def ros_venv() -> toolchain.RosVenv:
@@ -104,16 +107,35 @@ def node_env(built: Built, domain: int, tmp: Path) -> dict[str, str]:
     return env
 
 
+def with_rssmc(env: dict[str, str], tmp: Path) -> dict[str, str]:
+    """``env`` in which the nodes can import rssmc, as the standard library's devices need
+    (docs/ros2.md, "External operations and devices"): the repository and rssmc's own lark
+    (>= 1.2; the ROS wheels bring lark-parser 0.12 under the same module name) first on
+    PYTHONPATH, as a pip install of rssmc into the ROS venv would have them."""
+    import lark
+
+    overlay = tmp / "rssmc-path"
+    overlay.mkdir(exist_ok=True)
+    link = overlay / "lark"
+    if not link.exists():
+        link.symlink_to(Path(lark.__file__).resolve().parent)
+    out = dict(env)
+    out["PYTHONPATH"] = os.pathsep.join(
+        p for p in (str(overlay), str(ROOT), env.get("PYTHONPATH", "")) if p)
+    return out
+
+
 class Processes:
     """Processes started by a test; every one still running at the end is killed."""
 
     def __init__(self) -> None:
         self.procs: list[subprocess.Popen[bytes]] = []
 
-    def start(self, cmd: list[str], env: dict[str, str], log: Path) -> subprocess.Popen[bytes]:
+    def start(self, cmd: list[str], env: dict[str, str], log: Path,
+              cwd: Path | None = None) -> subprocess.Popen[bytes]:
         out = open(log, "wb")  # noqa: SIM115
         p = subprocess.Popen(cmd, env=env, stdout=out, stderr=subprocess.STDOUT,
-                             start_new_session=True)
+                             start_new_session=True, cwd=cwd)
         out.close()
         self.procs.append(p)
         return p
@@ -152,22 +174,26 @@ def wait_ready(proc: subprocess.Popen[bytes], log: Path, timeout: float = 60.0) 
 
 
 def launch_cmd(files: list[Path], duration: float, log_dir: Path,
-               params: list[str] = ()) -> list[str]:  # type: ignore[assignment]
-    """The launch runner, run by this (the test) interpreter as `python -m`."""
+               params: list[str] = (),  # type: ignore[assignment]
+               arguments: dict[str, str] | None = None) -> list[str]:
+    """The launch runner, run by this (the test) interpreter as `python -m` (from any folder:
+    rssmc is installed in it); ``arguments`` are launch arguments (NAME:=VALUE)."""
     cmd = [sys.executable, "-m", "rssm_dsl.ros2.launch_runner", "--duration", str(duration),
            "--grace", "10", "--log-dir", str(log_dir)]
     for p in params:
         cmd += ["-p", p]
-    return cmd + [str(f) for f in files]
+    return cmd + [str(f) for f in files] + [f"{k}:={v}" for k, v in (arguments or {}).items()]
 
 
 def monitor_cmd(venv: toolchain.RosVenv, interfaces: str, duration: float, out: Path,
                 diagnostics: list[str] = (), data: list[str] = (),  # type: ignore[assignment]
-                until_ended: int = 0) -> list[str]:
+                until_ended: int = 0, info: list[str] = ()) -> list[str]:  # type: ignore[assignment]
     cmd = [str(venv.python), str(MONITOR), "--interfaces", interfaces, "--duration",
            str(duration), "--out", str(out), "--until-ended", str(until_ended)]
     for t in diagnostics:
         cmd += ["--diagnostics", t]
     for t in data:
         cmd += ["--data", t]
+    for t in info:
+        cmd += ["--info", t]
     return cmd

@@ -1,7 +1,9 @@
 """A DDS observer for the ROS 2 tests, run with the ROS venv's Python: it subscribes to the
 diagnostics topics of subsystem nodes (SubsystemStatus, reliable, transient local, as the
-nodes publish them) and to data topics (TOPIC=SampleType, reliable, keep all), and writes
-what it hears as JSON lines. It prints "ready" once subscribed and exits after --duration
+nodes publish them), to data topics (--data TOPIC=pkg/msg/Type: any message type, e.g.
+std_msgs/msg/Int64) and to the sample-info topics of channels (--info TOPIC: SampleInfo on
+TOPIC/info), all reliable, keep all, and writes what it hears as JSON lines. It prints
+"ready" once subscribed and exits after --duration
 seconds, or once --until-ended diagnostics topics reported the end of their subsystem."""
 
 from __future__ import annotations
@@ -32,6 +34,7 @@ def main() -> int:
     ap.add_argument("--out", required=True)
     ap.add_argument("--diagnostics", action="append", default=[])
     ap.add_argument("--data", action="append", default=[])
+    ap.add_argument("--info", action="append", default=[])
     ap.add_argument("--until-ended", type=int, default=0)
     args = ap.parse_args()
     msg = importlib.import_module(f"{args.interfaces}.msg")
@@ -57,16 +60,25 @@ def main() -> int:
                 ended.add(topic)
         return cb
 
-    def on_data(topic: str) -> Any:
+    def on_info(topic: str) -> Any:
         def cb(m: Any) -> None:
             write({"topic": topic, "epoch": m.epoch, "seq": m.seq})
         return cb
 
+    def on_data(topic: str) -> Any:
+        def cb(m: Any) -> None:
+            write({"topic": topic, "data": str(m)})
+        return cb
+
     for topic in args.diagnostics:
         node.create_subscription(msg.SubsystemStatus, topic, on_status(topic), STATUS_QOS)
+    for topic in args.info:
+        node.create_subscription(msg.SampleInfo, topic + "/info", on_info(topic), DATA_QOS)
     for item in args.data:
         topic, _, type_name = item.partition("=")
-        node.create_subscription(getattr(msg, type_name), topic, on_data(topic), DATA_QOS)
+        package, _, name = type_name.split("/")
+        cls = getattr(importlib.import_module(f"{package}.msg"), name)
+        node.create_subscription(cls, topic, on_data(topic), DATA_QOS)
     print("ready", flush=True)
     try:
         while time.monotonic() - start < args.duration:

@@ -22,13 +22,14 @@ def test_writes_the_workspace(tmp_path: Path) -> None:
                  "Ada Lovelace <ada@example.org>", "--license", "BSD-3-Clause")
     assert done.returncode == 0, done.stderr
     written = sorted(p for p in out.rglob("*") if p.is_file())
-    assert f"wrote {len(written)} files of 4 packages" in done.stderr
+    assert f"wrote {len(written)} files of 5 packages" in done.stderr
     # the semantics core is shipped unchanged: the nodes run the interpreter's code
     core = out / "relay_runtime" / "rssm_core"
     for src in (ROOT / "rssm_core").glob("*.py"):
         assert (core / src.name).read_bytes() == src.read_bytes()
     assert sorted(p.name for p in out.iterdir()) == [
-        "README.md", "relay_dst", "relay_interfaces", "relay_runtime", "relay_src"]
+        "README.md", "relay_bringup", "relay_dst", "relay_interfaces", "relay_runtime",
+        "relay_src"]
     xml = (out / "relay_dst" / "package.xml").read_text()
     assert '<maintainer email="ada@example.org">Ada Lovelace</maintainer>' in xml
     assert "<license>BSD-3-Clause</license>" in xml

@@ -200,7 +200,9 @@ def test_record_names_become_camel_case_messages(tmp_path: Path) -> None:
     ws = gen_text(tmp_path, text.replace("Pose", "arm_pose"))
     assert not isinstance(ws, list)
     assert "sys_interfaces/msg/ArmPose.msg" in ws.files
-    assert "sys_interfaces/msg/ArmPoseSample.msg" in ws.files
+    # the data topic carries the record's message itself, no wrapper
+    assert "sys_interfaces/msg/ArmPoseSample.msg" not in ws.files
+    assert "| /a1/c/out | sys_interfaces/msg/ArmPose |" in ws.files["README.md"]
 
 
 def test_user_text_never_becomes_code(tmp_path: Path) -> None:

@@ -17,7 +17,7 @@ from tests.ros2.conftest import SPECS
 
 GOLDEN = ROOT / "tests" / "golden" / "ros2"
 SPEC_FILES = [*example_specs(), SPECS / "relay.rssm", SPECS / "wire.rssm",
-              SPECS / "tricky.rssm"]
+              SPECS / "tricky.rssm", SPECS / "deploy.rssm"]
 
 
 def _name(spec: Path) -> str:

@@ -141,3 +141,57 @@ def test_missing_package_is_reported(tmp_path: Path) -> None:
     done = _run([_launch_file(tmp_path, "nowhere", ["x"])], env)
     assert done.returncode == 2
     assert "package 'nowhere' is not found on AMENT_PREFIX_PATH" in done.stderr
+
+
+def test_system_launch_file_and_its_domain_argument(tmp_path: Path,
+                                                    monkeypatch: pytest.MonkeyPatch,
+                                                    capsys: pytest.CaptureFixture[str]) -> None:
+    """The bringup package's system.launch.py: every agent's nodes in their namespaces with
+    config/system.yaml, and ROS_DOMAIN_ID set from the launch argument domain_id (default:
+    the environment's, else 0)."""
+    monkeypatch.chdir(ROOT)
+    ws = generate(compile_file(Path("tests/ros2/specs/relay.rssm")))
+    assert not isinstance(ws, list)
+    write_workspace(ws, tmp_path / "src")
+    launch = tmp_path / "src" / "relay_bringup" / "launch" / "system.launch.py"
+    for package in ("relay_bringup", "relay_src", "relay_dst"):
+        prefix = fake_prefix(tmp_path, package, {})
+    monkeypatch.setenv("AMENT_PREFIX_PATH", str(prefix))
+    monkeypatch.setenv("ROS_DOMAIN_ID", "5")
+    params = str(prefix / "share" / "relay_bringup" / "config" / "system.yaml")
+    planned = lr.plan([launch], {"domain_id": "9"})
+    assert [(n.package, n.fqn, n.parameters, env["ROS_DOMAIN_ID"]) for n, env in planned] == [
+        ("relay_src", "/src/c", [params], "9"),
+        ("relay_dst", "/dst/c", [params], "9"),
+        ("relay_dst", "/dst/e_arm", [params], "9")]
+    assert {env["ROS_DOMAIN_ID"] for _, env in lr.plan([launch])} == {"5"}
+    monkeypatch.delenv("ROS_DOMAIN_ID")
+    assert {env["ROS_DOMAIN_ID"] for _, env in lr.plan([launch])} == {"0"}
+    with pytest.raises(lr.LaunchError, match="domian_id not declared"):
+        lr.plan([launch], {"domian_id": "3"})
+    assert lr.main(["--dry-run", str(launch), "domain_id:=9"]) == 0
+    lines = [json.loads(x) for x in capsys.readouterr().out.splitlines()]
+    assert [(x["node"], x["env"]) for x in lines] == [
+        ("/src/c", {"ROS_DOMAIN_ID": "9"}), ("/dst/c", {"ROS_DOMAIN_ID": "9"}),
+        ("/dst/e_arm", {"ROS_DOMAIN_ID": "9"})]
+
+
+def test_set_environment_applies_to_the_nodes_after_it(tmp_path: Path) -> None:
+    prefix = fake_prefix(tmp_path, "pkg", {"ok": ("exit", 0)})
+    f = tmp_path / "env.launch.py"
+    f.write_text(
+        "from launch import LaunchDescription\nfrom launch.actions import "
+        "DeclareLaunchArgument, SetEnvironmentVariable\nfrom launch.substitutions import "
+        "LaunchConfiguration\nfrom launch_ros.actions import Node\n"
+        "def generate_launch_description():\n    return LaunchDescription([\n"
+        "        DeclareLaunchArgument('who'),\n"
+        "        Node(package='pkg', executable='ok', name='first'),\n"
+        "        SetEnvironmentVariable('RSSM_WHO', LaunchConfiguration('who')),\n"
+        "        Node(package='pkg', executable='ok', name='second')])\n")
+    env = dict(os.environ, AMENT_PREFIX_PATH=str(prefix))
+    env.pop("RSSM_WHO", None)
+    planned = lr.plan([f], {"who": "me"}, env)
+    assert [(n.name, e.get("RSSM_WHO")) for n, e in planned] == [("first", None),
+                                                                   ("second", "me")]
+    with pytest.raises(lr.LaunchError, match="'who' has no default"):
+        lr.plan([f], {}, env)

@@ -43,7 +43,8 @@ class Pair:
     consumed: int                # iterations of the consumer sink
     taken: list[int]             # seq of every sample the sink took, in order
     new: list[bool]              # new(data) of every sink iteration
-    on_wire: set[int]            # seqs the data topic carried (an independent subscriber)
+    on_wire: set[int]            # seqs the info topic carried (an independent subscriber)
+    data_heard: int              # plain std_msgs/Int64 messages the data topic carried
 
 
 def _events(path: Path) -> list[dict[str, Any]]:
@@ -55,7 +56,9 @@ def run_pairs(built: Built, venv: toolchain.RosVenv, domain: int, tmp: Path,
     env = node_env(built, domain, tmp)
     monitor = processes.start(
         monitor_cmd(venv, "wire_interfaces", RUN + 30, tmp / "dds.jsonl",
-                    data=[f"/{a}/c/data=Int64Sample" for a in PAIRS]), env, tmp / "monitor.log")
+                    info=[f"/{a}/c/data" for a in PAIRS],
+                    data=[f"/{a}/c/data=std_msgs/msg/Int64" for a in PAIRS]),
+        env, tmp / "monitor.log")
     wait_ready(monitor, tmp / "monitor.log")
     params = [p for a in PAIRS for p in (f"/{a}/c:rssm.rate_hz:={producer_hz}",
                                          f"/{a}/e_sink:rssm.rate_hz:={consumer_hz}")]
@@ -79,7 +82,10 @@ def run_pairs(built: Built, venv: toolchain.RosVenv, domain: int, tmp: Path,
         out[a] = Pair(len(prod), len(cons),
                       [e["received"]["data"]["seq"] for e in cons if e["received"]],
                       [e["new"][0] for e in cons],
-                      {h["seq"] for h in heard if h["topic"] == f"/{a}/c/data"})
+                      {h["seq"] for h in heard if h["topic"] == f"/{a}/c/data" and "seq" in h},
+                      sum(1 for h in heard if h["topic"] == f"/{a}/c/data" and "data" in h))
+        # the data topic carries plain std_msgs/Int64, one message with every info
+        assert out[a].data_heard >= 0.9 * len(out[a].on_wire) > 0, (a, out[a].data_heard)
         # the value taken is the count the producer sent with that sample
         for e in cons:
             if e["received"]:

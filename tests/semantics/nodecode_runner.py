@@ -1,9 +1,10 @@
 """Run the Python of a generated ROS 2 node without ROS: the node module the generator writes
 (rssmc ros2) is executed with stand-ins for the modules that need rclpy (the workspace's
-runtime package and interfaces package); everything else it imports (the value semantics
-shipped with the workspace) is the real thing. A small driver then runs the node's behaviour
-pattern the way the runtime's Runner does for a subsystem without channels: the iteration
-function of the current behaviour, the terminal and error conditions, the switch.
+runtime package, interfaces package and standard message packages); everything else it
+imports (the value semantics shipped with the workspace) is the real thing. A small driver
+then runs the node's behaviour pattern the way the runtime's Runner does for a subsystem
+without channels: the iteration function of the current behaviour, the terminal and error
+conditions, the switch.
 
 The node module's contract with its runtime (see rssm_dsl/ros2/runtime/subsystem.py):
 ``SPEC = SubsystemSpec(..., initial=..., behaviours={name: BehaviourSpec(name, iterate,
@@ -24,6 +25,7 @@ from pathlib import Path
 from typing import Any
 
 from rssm_dsl.ros2.generator import generate, write_workspace
+from rssm_dsl.ros2.stdtypes import PACKAGES
 from tests.semantics.netview import compile_spec
 
 
@@ -141,7 +143,8 @@ def node_module(spec: Path, work: Path, subsystem_file: str) -> dict[str, Any]:
     src = work / "src"
     write_workspace(ws, src)
     system = comp.system.name if comp.system is not None else ""
-    stubbed = (f"{system}_interfaces", f"{system}_runtime")
+    # the workspace's packages, and the standard message packages of the data topics
+    stubbed = (f"{system}_interfaces", f"{system}_runtime", *PACKAGES)
     real_import = builtins.__import__
 
     def importer(name: str, globals: Any = None, locals: Any = None,

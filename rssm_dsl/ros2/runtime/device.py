@@ -13,6 +13,7 @@ same topics (docs/ros2.md).
 from __future__ import annotations
 
 import contextlib
+import importlib
 import sys
 import time
 from collections.abc import Callable, Iterator, Mapping
@@ -51,6 +52,7 @@ class DeviceNodeSpec:
     channels_out: tuple[ChannelSpec, ...]
     initial: Mapping[str, Any]                # buffer -> initial value (JSON-like)
     params: tuple[ParamSpec, ...]
+    package: str = ""                         # the ROS package installing the node
 
 
 @dataclass(frozen=True)
@@ -100,10 +102,26 @@ def device_spec(spec: DeviceNodeSpec, initial: Mapping[str, Any], params: Mappin
                           options, base_dir)
 
 
-def device_options(node: Node) -> tuple[dict[str, str], Path]:
+DATA_DIR = "data"       # the folder of the package's share folder holding the devices' files
+
+
+def package_data_dir(package: str) -> Path:
+    """``<share folder of package>/data``: where the generator installs the files a device
+    reads (a replayed CSV file), found through the ament index, never the current folder."""
+    try:
+        packages = importlib.import_module("ament_index_python.packages")
+        return Path(packages.get_package_share_directory(package)) / DATA_DIR
+    except Exception as e:
+        raise SetupError(f"cannot find the share folder of package '{package}' ({e}); set "
+                         "parameter rssm.base_dir") from e
+
+
+def device_options(node: Node, package: str = "") -> tuple[dict[str, str], Path]:
     """Parameters rssm.options ("KEY=VALUE;KEY=VALUE", what `rssmc simulate --device-option`
-    gives) and rssm.base_dir (the folder relative files are read from; default: the current
-    folder)."""
+    gives) and rssm.base_dir (the folder relative files are read from: empty, the default,
+    for the package's ``share/<package>/data`` folder, where the generator installed the
+    device's files; a relative folder is taken relative to the package's share folder; never
+    the current folder)."""
     from rcl_interfaces.msg import ParameterDescriptor
 
     text = node.declare_parameter("rssm.options", "",
@@ -118,7 +136,13 @@ def device_options(node: Node) -> tuple[dict[str, str], Path]:
         if not sep:
             raise SetupError(f"rssm.options: '{item}' is not KEY=VALUE")
         options[key.strip()] = value.strip()
-    return options, Path(base or ".")
+    if base and Path(base).is_absolute():
+        return options, Path(base)
+    if not package:
+        raise SetupError("parameter rssm.base_dir must be an absolute folder (the node does "
+                         "not know its package)")
+    data = package_data_dir(package)
+    return options, data.parent / base if base else data
 
 
 class DeviceRunner(Loop):
@@ -188,7 +212,7 @@ def run_device(spec: DeviceNodeSpec, args: list[str] | None = None) -> int:
         params = read_params(node, spec.params)
         types = dict(spec.inputs) | dict(spec.outputs)
         initial = {n: converter(types[n])(v) for n, v in spec.initial.items()}
-        options, base_dir = device_options(node)
+        options, base_dir = device_options(node, spec.package)
         cls = load(spec.binding[0], spec.binding[1], f"device {spec.id}")
         try:
             impl = cls(device_spec(spec, dict(initial), params, options, base_dir))

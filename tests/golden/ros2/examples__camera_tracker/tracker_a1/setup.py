@@ -15,6 +15,7 @@ setup(
         ('share/tracker_a1', ['package.xml']),
         ('share/tracker_a1/launch', ['launch/a1.launch.py']),
         ('share/tracker_a1/config', ['config/params.yaml']),
+        ('share/tracker_a1/data', ['data/camera.csv']),
     ],
     install_requires=["setuptools"],
     zip_safe=True,

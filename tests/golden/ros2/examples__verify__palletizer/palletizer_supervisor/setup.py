@@ -15,6 +15,7 @@ setup(
         ('share/palletizer_supervisor', ['package.xml']),
         ('share/palletizer_supervisor/launch', ['launch/supervisor.launch.py']),
         ('share/palletizer_supervisor/config', ['config/params.yaml']),
+        ('share/palletizer_supervisor/data', ['data/infeed.csv']),
     ],
     install_requires=["setuptools"],
     zip_safe=True,

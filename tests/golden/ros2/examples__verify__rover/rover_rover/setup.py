@@ -15,6 +15,7 @@ setup(
         ('share/rover_rover', ['package.xml']),
         ('share/rover_rover/launch', ['launch/rover.launch.py']),
         ('share/rover_rover/config', ['config/params.yaml']),
+        ('share/rover_rover/data', ['data/spectrometer.csv']),
     ],
     install_requires=["setuptools"],
     zip_safe=True,

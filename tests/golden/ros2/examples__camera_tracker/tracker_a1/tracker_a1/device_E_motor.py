@@ -10,13 +10,14 @@ from __future__ import annotations
 
 from rssm_core.modes import Pairing as _Pairing
 from tracker_interfaces import msg as _msg
+from std_msgs import msg as _std_msgs
 from tracker_runtime.channels import ChannelSpec as _Channel
 from tracker_runtime.device import DeviceNodeSpec as _Device
 from tracker_runtime.device import main_device as _main
 from tracker_runtime.params import ParamSpec as _Param
 
 T0 = ('float',)
-M0 = ('float',)
+M0 = ('msg', _std_msgs.Float64, 'data', ('float',))
 
 SPEC = _Device(
     id='a1.E.motor',
@@ -31,12 +32,12 @@ SPEC = _Device(
     inputs=(('command', T0),),
     outputs=(('angle', T0),),
     channels_in=(
-        _Channel('command', 'a1.e.pan.command->a1.E.motor.command', '/a1/e_pan/command', _msg.Float64Sample, _msg.Ack, M0,
-                 _Pairing.NONBLOCKING_NONBLOCKING),
+        _Channel('command', 'a1.e.pan.command->a1.E.motor.command', '/a1/e_pan/command', _std_msgs.Float64, _msg.SampleInfo, _msg.Ack,
+                 M0, _Pairing.NONBLOCKING_NONBLOCKING),
     ),
     channels_out=(
-        _Channel('angle', 'a1.E.motor.angle->a1.e.pan.angle', '/a1/E_motor/angle', _msg.Float64Sample, _msg.Ack, M0,
-                 _Pairing.NONBLOCKING_NONBLOCKING),
+        _Channel('angle', 'a1.E.motor.angle->a1.e.pan.angle', '/a1/E_motor/angle', _std_msgs.Float64, _msg.SampleInfo, _msg.Ack,
+                 M0, _Pairing.NONBLOCKING_NONBLOCKING),
     ),
     initial={
         'command': 0.0,
@@ -44,6 +45,7 @@ SPEC = _Device(
     },
     params=(
     ),
+    package='tracker_a1',
 )
 
 

@@ -33,14 +33,15 @@ SPEC = _Device(
     channels_in=(
     ),
     channels_out=(
-        _Channel('frame', 'a1.R.camera.frame->a1.r.vision.frame', '/a1/R_camera/frame', _msg.BlobSample, _msg.Ack, M0,
-                 _Pairing.NONBLOCKING_NONBLOCKING),
+        _Channel('frame', 'a1.R.camera.frame->a1.r.vision.frame', '/a1/R_camera/frame', _msg.Blob, _msg.SampleInfo, _msg.Ack,
+                 M0, _Pairing.NONBLOCKING_NONBLOCKING),
     ),
     initial={
         'frame': {'visible': False, 'x': 0.0, 'size': 0.0},
     },
     params=(
     ),
+    package='tracker_a1',
 )
 
 

@@ -15,6 +15,7 @@ from collections.abc import Mapping
 from typing import Any
 
 from tracker_interfaces import msg as _msg
+from std_msgs import msg as _std_msgs
 import rssm_core.values as _rt
 from rssm_core.modes import Pairing as _Pairing
 from tracker_runtime.bindings import load as _load
@@ -32,7 +33,7 @@ T0 = ('record', 'Blob', (('visible', ('bool',)), ('x', ('float',)), ('size', ('f
 T1 = ('float',)
 T2 = ('int',)
 M0 = ('record', _msg.Blob, (('visible', ('bool',)), ('x', ('float',)), ('size', ('float',))))
-M1 = ('float',)
+M1 = ('msg', _std_msgs.Float64, 'data', ('float',))
 
 # ---------------------------------------------------------------- external operations
 
@@ -210,12 +211,12 @@ SPEC = _Subsystem(
         _Param('patience', T2, 10),
     ),
     inputs=(
-        _Channel('target', 'a1.r.vision.target->a1.c.target', '/a1/r_vision/target', _msg.BlobSample, _msg.Ack, M0,
-                 _Pairing.NONBLOCKING_NONBLOCKING),
+        _Channel('target', 'a1.r.vision.target->a1.c.target', '/a1/r_vision/target', _msg.Blob, _msg.SampleInfo, _msg.Ack,
+                 M0, _Pairing.NONBLOCKING_NONBLOCKING),
     ),
     outputs=(
-        _Channel('goal', 'a1.c.goal->a1.e.pan.goal', '/a1/c/goal', _msg.Float64Sample, _msg.Ack, M1,
-                 _Pairing.NONBLOCKING_NONBLOCKING),
+        _Channel('goal', 'a1.c.goal->a1.e.pan.goal', '/a1/c/goal', _std_msgs.Float64, _msg.SampleInfo, _msg.Ack,
+                 M1, _Pairing.NONBLOCKING_NONBLOCKING),
     ),
     initial='search',
     behaviours={

@@ -15,6 +15,7 @@ from collections.abc import Mapping
 from typing import Any
 
 from tracker_interfaces import msg as _msg
+from std_msgs import msg as _std_msgs
 import rssm_core.values as _rt
 from rssm_core.modes import Pairing as _Pairing
 from tracker_runtime.bindings import load as _load
@@ -29,7 +30,7 @@ from tracker_runtime.subsystem import main_subsystem as _main
 
 # ---------------------------------------------------------------- types
 T0 = ('float',)
-M0 = ('float',)
+M0 = ('msg', _std_msgs.Float64, 'data', ('float',))
 
 # ---------------------------------------------------------------- external operations
 
@@ -130,14 +131,14 @@ SPEC = _Subsystem(
         _Param('rate', T0, 0.02),
     ),
     inputs=(
-        _Channel('goal', 'a1.c.goal->a1.e.pan.goal', '/a1/c/goal', _msg.Float64Sample, _msg.Ack, M0,
-                 _Pairing.NONBLOCKING_NONBLOCKING),
-        _Channel('angle', 'a1.E.motor.angle->a1.e.pan.angle', '/a1/E_motor/angle', _msg.Float64Sample, _msg.Ack, M0,
-                 _Pairing.NONBLOCKING_NONBLOCKING),
+        _Channel('goal', 'a1.c.goal->a1.e.pan.goal', '/a1/c/goal', _std_msgs.Float64, _msg.SampleInfo, _msg.Ack,
+                 M0, _Pairing.NONBLOCKING_NONBLOCKING),
+        _Channel('angle', 'a1.E.motor.angle->a1.e.pan.angle', '/a1/E_motor/angle', _std_msgs.Float64, _msg.SampleInfo, _msg.Ack,
+                 M0, _Pairing.NONBLOCKING_NONBLOCKING),
     ),
     outputs=(
-        _Channel('command', 'a1.e.pan.command->a1.E.motor.command', '/a1/e_pan/command', _msg.Float64Sample, _msg.Ack, M0,
-                 _Pairing.NONBLOCKING_NONBLOCKING),
+        _Channel('command', 'a1.e.pan.command->a1.E.motor.command', '/a1/e_pan/command', _std_msgs.Float64, _msg.SampleInfo, _msg.Ack,
+                 M0, _Pairing.NONBLOCKING_NONBLOCKING),
     ),
     initial='drive',
     behaviours={

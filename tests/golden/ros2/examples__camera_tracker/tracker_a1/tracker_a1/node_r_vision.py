@@ -117,12 +117,12 @@ SPEC = _Subsystem(
         _Param('min_size', T1, 0.05),
     ),
     inputs=(
-        _Channel('frame', 'a1.R.camera.frame->a1.r.vision.frame', '/a1/R_camera/frame', _msg.BlobSample, _msg.Ack, M0,
-                 _Pairing.NONBLOCKING_NONBLOCKING),
+        _Channel('frame', 'a1.R.camera.frame->a1.r.vision.frame', '/a1/R_camera/frame', _msg.Blob, _msg.SampleInfo, _msg.Ack,
+                 M0, _Pairing.NONBLOCKING_NONBLOCKING),
     ),
     outputs=(
-        _Channel('target', 'a1.r.vision.target->a1.c.target', '/a1/r_vision/target', _msg.BlobSample, _msg.Ack, M0,
-                 _Pairing.NONBLOCKING_NONBLOCKING),
+        _Channel('target', 'a1.r.vision.target->a1.c.target', '/a1/r_vision/target', _msg.Blob, _msg.SampleInfo, _msg.Ack,
+                 M0, _Pairing.NONBLOCKING_NONBLOCKING),
     ),
     initial='filter',
     behaviours={

@@ -10,13 +10,14 @@ from __future__ import annotations
 
 from rssm_core.modes import Pairing as _Pairing
 from heaters_interfaces import msg as _msg
+from std_msgs import msg as _std_msgs
 from heaters_runtime.channels import ChannelSpec as _Channel
 from heaters_runtime.device import DeviceNodeSpec as _Device
 from heaters_runtime.device import main_device as _main
 from heaters_runtime.params import ParamSpec as _Param
 
 T0 = ('float',)
-M0 = ('float',)
+M0 = ('msg', _std_msgs.Float64, 'data', ('float',))
 
 SPEC = _Device(
     id='a1.E.big',
@@ -31,12 +32,12 @@ SPEC = _Device(
     inputs=(('power', T0),),
     outputs=(('temperature', T0),),
     channels_in=(
-        _Channel('power', 'a1.e.heat.big_p->a1.E.big.power', '/a1/e_heat/big_p', _msg.Float64Sample, _msg.Ack, M0,
-                 _Pairing.NONBLOCKING_NONBLOCKING),
+        _Channel('power', 'a1.e.heat.big_p->a1.E.big.power', '/a1/e_heat/big_p', _std_msgs.Float64, _msg.SampleInfo, _msg.Ack,
+                 M0, _Pairing.NONBLOCKING_NONBLOCKING),
     ),
     channels_out=(
-        _Channel('temperature', 'a1.E.big.temperature->a1.e.heat.big_t', '/a1/E_big/temperature', _msg.Float64Sample, _msg.Ack, M0,
-                 _Pairing.NONBLOCKING_NONBLOCKING),
+        _Channel('temperature', 'a1.E.big.temperature->a1.e.heat.big_t', '/a1/E_big/temperature', _std_msgs.Float64, _msg.SampleInfo, _msg.Ack,
+                 M0, _Pairing.NONBLOCKING_NONBLOCKING),
     ),
     initial={
         'power': 0.0,
@@ -46,6 +47,7 @@ SPEC = _Device(
         _Param('ambient', T0, 20.0),
         _Param('watts', T0, 2000.0),
     ),
+    package='heaters_a1',
 )
 
 

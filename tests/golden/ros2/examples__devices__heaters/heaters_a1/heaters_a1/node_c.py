@@ -30,7 +30,7 @@ from heaters_runtime.subsystem import main_subsystem as _main
 # ---------------------------------------------------------------- types
 T0 = ('array', ('float',), 2)
 T1 = ('float',)
-M0 = ('array', ('float',), 2, None)
+M0 = ('msg', _msg.Float64Array2Sample, 'value', ('array', ('float',), 2, None))
 
 # ---------------------------------------------------------------- external operations
 
@@ -176,8 +176,8 @@ SPEC = _Subsystem(
         _Param('hot', T1, 50.0),
     ),
     inputs=(
-        _Channel('temperatures', 'a1.e.heat.temperatures->a1.c.temperatures', '/a1/e_heat/temperatures', _msg.Float64Array2Sample, _msg.Ack, M0,
-                 _Pairing.NONBLOCKING_NONBLOCKING),
+        _Channel('temperatures', 'a1.e.heat.temperatures->a1.c.temperatures', '/a1/e_heat/temperatures', _msg.Float64Array2Sample, _msg.SampleInfo, _msg.Ack,
+                 M0, _Pairing.NONBLOCKING_NONBLOCKING),
     ),
     outputs=(
     ),

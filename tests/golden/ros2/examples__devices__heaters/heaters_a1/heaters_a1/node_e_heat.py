@@ -15,6 +15,7 @@ from collections.abc import Mapping
 from typing import Any
 
 from heaters_interfaces import msg as _msg
+from std_msgs import msg as _std_msgs
 import rssm_core.values as _rt
 from rssm_core.modes import Pairing as _Pairing
 from heaters_runtime.bindings import load as _load
@@ -31,8 +32,8 @@ from heaters_runtime.subsystem import main_subsystem as _main
 T0 = ('float',)
 T1 = ('array', ('float',), 2)
 CV0 = _rt.converter(T0)
-M0 = ('float',)
-M1 = ('array', ('float',), 2, None)
+M0 = ('msg', _std_msgs.Float64, 'data', ('float',))
+M1 = ('msg', _msg.Float64Array2Sample, 'value', ('array', ('float',), 2, None))
 
 # ---------------------------------------------------------------- external operations
 x_heat_command: Any = None
@@ -159,18 +160,18 @@ SPEC = _Subsystem(
         _Param('target', T0, 60.0),
     ),
     inputs=(
-        _Channel('small_t', 'a1.E.small.temperature->a1.e.heat.small_t', '/a1/E_small/temperature', _msg.Float64Sample, _msg.Ack, M0,
-                 _Pairing.NONBLOCKING_NONBLOCKING),
-        _Channel('big_t', 'a1.E.big.temperature->a1.e.heat.big_t', '/a1/E_big/temperature', _msg.Float64Sample, _msg.Ack, M0,
-                 _Pairing.NONBLOCKING_NONBLOCKING),
+        _Channel('small_t', 'a1.E.small.temperature->a1.e.heat.small_t', '/a1/E_small/temperature', _std_msgs.Float64, _msg.SampleInfo, _msg.Ack,
+                 M0, _Pairing.NONBLOCKING_NONBLOCKING),
+        _Channel('big_t', 'a1.E.big.temperature->a1.e.heat.big_t', '/a1/E_big/temperature', _std_msgs.Float64, _msg.SampleInfo, _msg.Ack,
+                 M0, _Pairing.NONBLOCKING_NONBLOCKING),
     ),
     outputs=(
-        _Channel('small_p', 'a1.e.heat.small_p->a1.E.small.power', '/a1/e_heat/small_p', _msg.Float64Sample, _msg.Ack, M0,
-                 _Pairing.NONBLOCKING_NONBLOCKING),
-        _Channel('big_p', 'a1.e.heat.big_p->a1.E.big.power', '/a1/e_heat/big_p', _msg.Float64Sample, _msg.Ack, M0,
-                 _Pairing.NONBLOCKING_NONBLOCKING),
-        _Channel('temperatures', 'a1.e.heat.temperatures->a1.c.temperatures', '/a1/e_heat/temperatures', _msg.Float64Array2Sample, _msg.Ack, M1,
-                 _Pairing.NONBLOCKING_NONBLOCKING),
+        _Channel('small_p', 'a1.e.heat.small_p->a1.E.small.power', '/a1/e_heat/small_p', _std_msgs.Float64, _msg.SampleInfo, _msg.Ack,
+                 M0, _Pairing.NONBLOCKING_NONBLOCKING),
+        _Channel('big_p', 'a1.e.heat.big_p->a1.E.big.power', '/a1/e_heat/big_p', _std_msgs.Float64, _msg.SampleInfo, _msg.Ack,
+                 M0, _Pairing.NONBLOCKING_NONBLOCKING),
+        _Channel('temperatures', 'a1.e.heat.temperatures->a1.c.temperatures', '/a1/e_heat/temperatures', _msg.Float64Array2Sample, _msg.SampleInfo, _msg.Ack,
+                 M1, _Pairing.NONBLOCKING_NONBLOCKING),
     ),
     initial='regulate',
     behaviours={

@@ -10,13 +10,14 @@ from __future__ import annotations
 
 from rssm_core.modes import Pairing as _Pairing
 from handover_interfaces import msg as _msg
+from std_msgs import msg as _std_msgs
 from handover_runtime.channels import ChannelSpec as _Channel
 from handover_runtime.device import DeviceNodeSpec as _Device
 from handover_runtime.device import main_device as _main
 from handover_runtime.params import ParamSpec as _Param
 
 T0 = ('float',)
-M0 = ('float',)
+M0 = ('msg', _std_msgs.Float64, 'data', ('float',))
 
 SPEC = _Device(
     id='giver.E.motor',
@@ -31,12 +32,12 @@ SPEC = _Device(
     inputs=(('command', T0),),
     outputs=(('position', T0),),
     channels_in=(
-        _Channel('command', 'giver.e.arm.command->giver.E.motor.command', '/giver/e_arm/command', _msg.Float64Sample, _msg.Ack, M0,
-                 _Pairing.NONBLOCKING_NONBLOCKING),
+        _Channel('command', 'giver.e.arm.command->giver.E.motor.command', '/giver/e_arm/command', _std_msgs.Float64, _msg.SampleInfo, _msg.Ack,
+                 M0, _Pairing.NONBLOCKING_NONBLOCKING),
     ),
     channels_out=(
-        _Channel('position', 'giver.E.motor.position->giver.e.arm.position', '/giver/E_motor/position', _msg.Float64Sample, _msg.Ack, M0,
-                 _Pairing.NONBLOCKING_NONBLOCKING),
+        _Channel('position', 'giver.E.motor.position->giver.e.arm.position', '/giver/E_motor/position', _std_msgs.Float64, _msg.SampleInfo, _msg.Ack,
+                 M0, _Pairing.NONBLOCKING_NONBLOCKING),
     ),
     initial={
         'command': 0.0,
@@ -44,6 +45,7 @@ SPEC = _Device(
     },
     params=(
     ),
+    package='handover_giver',
 )
 
 

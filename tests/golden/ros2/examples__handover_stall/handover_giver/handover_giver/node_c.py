@@ -15,6 +15,7 @@ from collections.abc import Mapping
 from typing import Any
 
 from handover_interfaces import msg as _msg
+from std_msgs import msg as _std_msgs
 import rssm_core.values as _rt
 from rssm_core.modes import Pairing as _Pairing
 from handover_runtime.bindings import load as _load
@@ -30,8 +31,8 @@ from handover_runtime.subsystem import main_subsystem as _main
 # ---------------------------------------------------------------- types
 T0 = ('int',)
 T1 = ('float',)
-M0 = ('int',)
-M1 = ('float',)
+M0 = ('msg', _std_msgs.Int64, 'data', ('int',))
+M1 = ('msg', _std_msgs.Float64, 'data', ('float',))
 
 # ---------------------------------------------------------------- external operations
 
@@ -136,14 +137,14 @@ SPEC = _Subsystem(
     params=(
     ),
     inputs=(
-        _Channel('other', 'taker.c.ready->giver.c.other', '/taker/c/ready', _msg.Int64Sample, _msg.Ack, M0,
-                 _Pairing.BLOCKING_BLOCKING),
+        _Channel('other', 'taker.c.ready->giver.c.other', '/taker/c/ready', _std_msgs.Int64, _msg.SampleInfo, _msg.Ack,
+                 M0, _Pairing.BLOCKING_BLOCKING),
     ),
     outputs=(
-        _Channel('ready', 'giver.c.ready->taker.c.other', '/giver/c/ready', _msg.Int64Sample, _msg.Ack, M0,
-                 _Pairing.BLOCKING_BLOCKING),
-        _Channel('goal', 'giver.c.goal->giver.e.arm.goal', '/giver/c/goal', _msg.Float64Sample, _msg.Ack, M1,
-                 _Pairing.NONBLOCKING_NONBLOCKING),
+        _Channel('ready', 'giver.c.ready->taker.c.other', '/giver/c/ready', _std_msgs.Int64, _msg.SampleInfo, _msg.Ack,
+                 M0, _Pairing.BLOCKING_BLOCKING),
+        _Channel('goal', 'giver.c.goal->giver.e.arm.goal', '/giver/c/goal', _std_msgs.Float64, _msg.SampleInfo, _msg.Ack,
+                 M1, _Pairing.NONBLOCKING_NONBLOCKING),
     ),
     initial='hold',
     behaviours={

@@ -15,6 +15,7 @@ from collections.abc import Mapping
 from typing import Any
 
 from handover_interfaces import msg as _msg
+from std_msgs import msg as _std_msgs
 import rssm_core.values as _rt
 from rssm_core.modes import Pairing as _Pairing
 from handover_runtime.bindings import load as _load
@@ -29,7 +30,7 @@ from handover_runtime.subsystem import main_subsystem as _main
 
 # ---------------------------------------------------------------- types
 T0 = ('float',)
-M0 = ('float',)
+M0 = ('msg', _std_msgs.Float64, 'data', ('float',))
 
 # ---------------------------------------------------------------- external operations
 
@@ -119,14 +120,14 @@ SPEC = _Subsystem(
     params=(
     ),
     inputs=(
-        _Channel('goal', 'giver.c.goal->giver.e.arm.goal', '/giver/c/goal', _msg.Float64Sample, _msg.Ack, M0,
-                 _Pairing.NONBLOCKING_NONBLOCKING),
-        _Channel('position', 'giver.E.motor.position->giver.e.arm.position', '/giver/E_motor/position', _msg.Float64Sample, _msg.Ack, M0,
-                 _Pairing.NONBLOCKING_NONBLOCKING),
+        _Channel('goal', 'giver.c.goal->giver.e.arm.goal', '/giver/c/goal', _std_msgs.Float64, _msg.SampleInfo, _msg.Ack,
+                 M0, _Pairing.NONBLOCKING_NONBLOCKING),
+        _Channel('position', 'giver.E.motor.position->giver.e.arm.position', '/giver/E_motor/position', _std_msgs.Float64, _msg.SampleInfo, _msg.Ack,
+                 M0, _Pairing.NONBLOCKING_NONBLOCKING),
     ),
     outputs=(
-        _Channel('command', 'giver.e.arm.command->giver.E.motor.command', '/giver/e_arm/command', _msg.Float64Sample, _msg.Ack, M0,
-                 _Pairing.NONBLOCKING_NONBLOCKING),
+        _Channel('command', 'giver.e.arm.command->giver.E.motor.command', '/giver/e_arm/command', _std_msgs.Float64, _msg.SampleInfo, _msg.Ack,
+                 M0, _Pairing.NONBLOCKING_NONBLOCKING),
     ),
     initial='follow',
     behaviours={

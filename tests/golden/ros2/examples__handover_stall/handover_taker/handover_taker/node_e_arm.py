@@ -15,6 +15,7 @@ from collections.abc import Mapping
 from typing import Any
 
 from handover_interfaces import msg as _msg
+from std_msgs import msg as _std_msgs
 import rssm_core.values as _rt
 from rssm_core.modes import Pairing as _Pairing
 from handover_runtime.bindings import load as _load
@@ -29,7 +30,7 @@ from handover_runtime.subsystem import main_subsystem as _main
 
 # ---------------------------------------------------------------- types
 T0 = ('float',)
-M0 = ('float',)
+M0 = ('msg', _std_msgs.Float64, 'data', ('float',))
 
 # ---------------------------------------------------------------- external operations
 
@@ -119,14 +120,14 @@ SPEC = _Subsystem(
     params=(
     ),
     inputs=(
-        _Channel('goal', 'taker.c.goal->taker.e.arm.goal', '/taker/c/goal', _msg.Float64Sample, _msg.Ack, M0,
-                 _Pairing.NONBLOCKING_NONBLOCKING),
-        _Channel('position', 'taker.E.motor.position->taker.e.arm.position', '/taker/E_motor/position', _msg.Float64Sample, _msg.Ack, M0,
-                 _Pairing.NONBLOCKING_NONBLOCKING),
+        _Channel('goal', 'taker.c.goal->taker.e.arm.goal', '/taker/c/goal', _std_msgs.Float64, _msg.SampleInfo, _msg.Ack,
+                 M0, _Pairing.NONBLOCKING_NONBLOCKING),
+        _Channel('position', 'taker.E.motor.position->taker.e.arm.position', '/taker/E_motor/position', _std_msgs.Float64, _msg.SampleInfo, _msg.Ack,
+                 M0, _Pairing.NONBLOCKING_NONBLOCKING),
     ),
     outputs=(
-        _Channel('command', 'taker.e.arm.command->taker.E.motor.command', '/taker/e_arm/command', _msg.Float64Sample, _msg.Ack, M0,
-                 _Pairing.NONBLOCKING_NONBLOCKING),
+        _Channel('command', 'taker.e.arm.command->taker.E.motor.command', '/taker/e_arm/command', _std_msgs.Float64, _msg.SampleInfo, _msg.Ack,
+                 M0, _Pairing.NONBLOCKING_NONBLOCKING),
     ),
     initial='follow',
     behaviours={

@@ -17,7 +17,7 @@ from lwr4_circle_runtime.params import ParamSpec as _Param
 
 T0 = ('array', ('float',), 7)
 T1 = ('record', 'LwrState', (('q', ('array', ('float',), 7)), ('dq', ('array', ('float',), 7)), ('position', ('array', ('float',), 3)), ('velocity', ('array', ('float',), 3))))
-M0 = ('array', ('float',), 7, None)
+M0 = ('msg', _msg.Float64Array7Sample, 'value', ('array', ('float',), 7, None))
 M1 = ('record', _msg.LwrState, (('q', ('array', ('float',), 7, None)), ('dq', ('array', ('float',), 7, None)), ('position', ('array', ('float',), 3, None)), ('velocity', ('array', ('float',), 3, None))))
 
 SPEC = _Device(
@@ -33,12 +33,12 @@ SPEC = _Device(
     inputs=(('torque', T0),),
     outputs=(('state', T1),),
     channels_in=(
-        _Channel('torque', 'a1.e.lwr.torque->a1.E.lwr.torque', '/a1/e_lwr/torque', _msg.Float64Array7Sample, _msg.Ack, M0,
-                 _Pairing.NONBLOCKING_NONBLOCKING),
+        _Channel('torque', 'a1.e.lwr.torque->a1.E.lwr.torque', '/a1/e_lwr/torque', _msg.Float64Array7Sample, _msg.SampleInfo, _msg.Ack,
+                 M0, _Pairing.NONBLOCKING_NONBLOCKING),
     ),
     channels_out=(
-        _Channel('state', 'a1.E.lwr.state->a1.e.lwr.state', '/a1/E_lwr/state', _msg.LwrStateSample, _msg.Ack, M1,
-                 _Pairing.NONBLOCKING_NONBLOCKING),
+        _Channel('state', 'a1.E.lwr.state->a1.e.lwr.state', '/a1/E_lwr/state', _msg.LwrState, _msg.SampleInfo, _msg.Ack,
+                 M1, _Pairing.NONBLOCKING_NONBLOCKING),
     ),
     initial={
         'torque': [0.0, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0],
@@ -46,6 +46,7 @@ SPEC = _Device(
     },
     params=(
     ),
+    package='lwr4_circle_a1',
 )
 
 

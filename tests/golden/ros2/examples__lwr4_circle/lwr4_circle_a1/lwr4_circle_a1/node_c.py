@@ -193,8 +193,8 @@ SPEC = _Subsystem(
     inputs=(
     ),
     outputs=(
-        _Channel('cmd', 'a1.c.cmd->a1.e.lwr.setpoint', '/a1/c/cmd', _msg.CartesianSetpointSample, _msg.Ack, M0,
-                 _Pairing.NONBLOCKING_NONBLOCKING),
+        _Channel('cmd', 'a1.c.cmd->a1.e.lwr.setpoint', '/a1/c/cmd', _msg.CartesianSetpoint, _msg.SampleInfo, _msg.Ack,
+                 M0, _Pairing.NONBLOCKING_NONBLOCKING),
     ),
     initial='cw',
     behaviours={

@@ -36,7 +36,7 @@ T4 = ('bool',)
 CV2 = _rt.converter(T2)
 M0 = ('record', _msg.CartesianSetpoint, (('position', ('array', ('float',), 3, None)), ('velocity', ('array', ('float',), 3, None))))
 M1 = ('record', _msg.LwrState, (('q', ('array', ('float',), 7, None)), ('dq', ('array', ('float',), 7, None)), ('position', ('array', ('float',), 3, None)), ('velocity', ('array', ('float',), 3, None))))
-M2 = ('array', ('float',), 7, None)
+M2 = ('msg', _msg.Float64Array7Sample, 'value', ('array', ('float',), 7, None))
 
 # ---------------------------------------------------------------- constants
 k_lwr4_start = {'position': _rt.float_array((0.58, 0.0, 0.4)), 'velocity': _rt.float_array((0.0, 0.0, 0.0))}
@@ -175,14 +175,14 @@ SPEC = _Subsystem(
         _Param('dt', T3, 0.001),
     ),
     inputs=(
-        _Channel('setpoint', 'a1.c.cmd->a1.e.lwr.setpoint', '/a1/c/cmd', _msg.CartesianSetpointSample, _msg.Ack, M0,
-                 _Pairing.NONBLOCKING_NONBLOCKING),
-        _Channel('state', 'a1.E.lwr.state->a1.e.lwr.state', '/a1/E_lwr/state', _msg.LwrStateSample, _msg.Ack, M1,
-                 _Pairing.NONBLOCKING_NONBLOCKING),
+        _Channel('setpoint', 'a1.c.cmd->a1.e.lwr.setpoint', '/a1/c/cmd', _msg.CartesianSetpoint, _msg.SampleInfo, _msg.Ack,
+                 M0, _Pairing.NONBLOCKING_NONBLOCKING),
+        _Channel('state', 'a1.E.lwr.state->a1.e.lwr.state', '/a1/E_lwr/state', _msg.LwrState, _msg.SampleInfo, _msg.Ack,
+                 M1, _Pairing.NONBLOCKING_NONBLOCKING),
     ),
     outputs=(
-        _Channel('torque', 'a1.e.lwr.torque->a1.E.lwr.torque', '/a1/e_lwr/torque', _msg.Float64Array7Sample, _msg.Ack, M2,
-                 _Pairing.NONBLOCKING_NONBLOCKING),
+        _Channel('torque', 'a1.e.lwr.torque->a1.E.lwr.torque', '/a1/e_lwr/torque', _msg.Float64Array7Sample, _msg.SampleInfo, _msg.Ack,
+                 M2, _Pairing.NONBLOCKING_NONBLOCKING),
     ),
     initial='move',
     behaviours={

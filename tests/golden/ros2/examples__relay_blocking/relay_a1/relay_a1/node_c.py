@@ -15,6 +15,7 @@ from collections.abc import Mapping
 from typing import Any
 
 from relay_interfaces import msg as _msg
+from std_msgs import msg as _std_msgs
 import rssm_core.values as _rt
 from rssm_core.modes import Pairing as _Pairing
 from relay_runtime.bindings import load as _load
@@ -29,7 +30,7 @@ from relay_runtime.subsystem import main_subsystem as _main
 
 # ---------------------------------------------------------------- types
 T0 = ('int',)
-M0 = ('int',)
+M0 = ('msg', _std_msgs.Int64, 'data', ('int',))
 
 # ---------------------------------------------------------------- external operations
 
@@ -183,12 +184,12 @@ SPEC = _Subsystem(
         _Param('limit', T0, 5),
     ),
     inputs=(
-        _Channel('reply', 'a2.c.reply->a1.c.reply', '/a2/c/reply', _msg.Int64Sample, _msg.Ack, M0,
-                 _Pairing.NONBLOCKING_BLOCKING),
+        _Channel('reply', 'a2.c.reply->a1.c.reply', '/a2/c/reply', _std_msgs.Int64, _msg.SampleInfo, _msg.Ack,
+                 M0, _Pairing.NONBLOCKING_BLOCKING),
     ),
     outputs=(
-        _Channel('request', 'a1.c.request->a2.c.request', '/a1/c/request', _msg.Int64Sample, _msg.Ack, M0,
-                 _Pairing.BLOCKING_BLOCKING),
+        _Channel('request', 'a1.c.request->a2.c.request', '/a1/c/request', _std_msgs.Int64, _msg.SampleInfo, _msg.Ack,
+                 M0, _Pairing.BLOCKING_BLOCKING),
     ),
     initial='up',
     behaviours={

@@ -15,6 +15,7 @@ from collections.abc import Mapping
 from typing import Any
 
 from iteration_interfaces import msg as _msg
+from std_msgs import msg as _std_msgs
 import rssm_core.values as _rt
 from rssm_core.modes import Pairing as _Pairing
 from iteration_runtime.bindings import load as _load
@@ -29,7 +30,7 @@ from iteration_runtime.subsystem import main_subsystem as _main
 
 # ---------------------------------------------------------------- types
 T0 = ('range', 0, 5)
-M0 = ('range', 0, 5)
+M0 = ('msg', _std_msgs.Int64, 'data', ('range', 0, 5))
 
 # ---------------------------------------------------------------- external operations
 
@@ -155,8 +156,8 @@ SPEC = _Subsystem(
     params=(
     ),
     inputs=(
-        _Channel('x', 'src.c.x->dst.c.x', '/src/c/x', _msg.Int64Sample, _msg.Ack, M0,
-                 _Pairing.BLOCKING_BLOCKING),
+        _Channel('x', 'src.c.x->dst.c.x', '/src/c/x', _std_msgs.Int64, _msg.SampleInfo, _msg.Ack,
+                 M0, _Pairing.BLOCKING_BLOCKING),
     ),
     outputs=(
     ),

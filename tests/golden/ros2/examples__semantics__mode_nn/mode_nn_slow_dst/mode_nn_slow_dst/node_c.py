@@ -15,6 +15,7 @@ from collections.abc import Mapping
 from typing import Any
 
 from mode_nn_interfaces import msg as _msg
+from std_msgs import msg as _std_msgs
 import rssm_core.values as _rt
 from rssm_core.modes import Pairing as _Pairing
 from mode_nn_runtime.bindings import load as _load
@@ -29,7 +30,7 @@ from mode_nn_runtime.subsystem import main_subsystem as _main
 
 # ---------------------------------------------------------------- types
 T0 = ('int',)
-M0 = ('int',)
+M0 = ('msg', _std_msgs.Int64, 'data', ('int',))
 
 # ---------------------------------------------------------------- external operations
 
@@ -117,8 +118,8 @@ SPEC = _Subsystem(
     params=(
     ),
     inputs=(
-        _Channel('x', 'fast_src.c.x->slow_dst.c.x', '/fast_src/c/x', _msg.Int64Sample, _msg.Ack, M0,
-                 _Pairing.NONBLOCKING_NONBLOCKING),
+        _Channel('x', 'fast_src.c.x->slow_dst.c.x', '/fast_src/c/x', _std_msgs.Int64, _msg.SampleInfo, _msg.Ack,
+                 M0, _Pairing.NONBLOCKING_NONBLOCKING),
     ),
     outputs=(
     ),

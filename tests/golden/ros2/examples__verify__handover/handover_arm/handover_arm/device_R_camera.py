@@ -33,14 +33,15 @@ SPEC = _Device(
     channels_in=(
     ),
     channels_out=(
-        _Channel('detection', 'arm.R.camera.detection->arm.r.vision.detection', '/arm/R_camera/detection', _msg.PartDetectionSample, _msg.Ack, M0,
-                 _Pairing.NONBLOCKING_NONBLOCKING),
+        _Channel('detection', 'arm.R.camera.detection->arm.r.vision.detection', '/arm/R_camera/detection', _msg.PartDetection, _msg.SampleInfo, _msg.Ack,
+                 M0, _Pairing.NONBLOCKING_NONBLOCKING),
     ),
     initial={
         'detection': {'visible': True, 'pose': {'position': [0.6, 0.2, 0.05], 'yaw': 0.0}, 'score': 0.93},
     },
     params=(
     ),
+    package='handover_arm',
 )
 
 

@@ -120,12 +120,12 @@ SPEC = _Subsystem(
         _Param('min_score', T1, 0.7),
     ),
     inputs=(
-        _Channel('detection', 'arm.R.camera.detection->arm.r.vision.detection', '/arm/R_camera/detection', _msg.PartDetectionSample, _msg.Ack, M0,
-                 _Pairing.NONBLOCKING_NONBLOCKING),
+        _Channel('detection', 'arm.R.camera.detection->arm.r.vision.detection', '/arm/R_camera/detection', _msg.PartDetection, _msg.SampleInfo, _msg.Ack,
+                 M0, _Pairing.NONBLOCKING_NONBLOCKING),
     ),
     outputs=(
-        _Channel('part', 'arm.r.vision.part->arm.c.part', '/arm/r_vision/part', _msg.PartDetectionSample, _msg.Ack, M0,
-                 _Pairing.NONBLOCKING_NONBLOCKING),
+        _Channel('part', 'arm.r.vision.part->arm.c.part', '/arm/r_vision/part', _msg.PartDetection, _msg.SampleInfo, _msg.Ack,
+                 M0, _Pairing.NONBLOCKING_NONBLOCKING),
     ),
     initial='locate',
     behaviours={

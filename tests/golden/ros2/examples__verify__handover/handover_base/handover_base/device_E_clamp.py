@@ -10,13 +10,14 @@ from __future__ import annotations
 
 from rssm_core.modes import Pairing as _Pairing
 from handover_interfaces import msg as _msg
+from std_msgs import msg as _std_msgs
 from handover_runtime.channels import ChannelSpec as _Channel
 from handover_runtime.device import DeviceNodeSpec as _Device
 from handover_runtime.device import main_device as _main
 from handover_runtime.params import ParamSpec as _Param
 
 T0 = ('bool',)
-M0 = ('bool',)
+M0 = ('msg', _std_msgs.Bool, 'data', ('bool',))
 
 SPEC = _Device(
     id='base.E.clamp',
@@ -31,12 +32,12 @@ SPEC = _Device(
     inputs=(('valve', T0),),
     outputs=(('sensed', T0),),
     channels_in=(
-        _Channel('valve', 'base.e.fixture.valve->base.E.clamp.valve', '/base/e_fixture/valve', _msg.BoolSample, _msg.Ack, M0,
-                 _Pairing.NONBLOCKING_NONBLOCKING),
+        _Channel('valve', 'base.e.fixture.valve->base.E.clamp.valve', '/base/e_fixture/valve', _std_msgs.Bool, _msg.SampleInfo, _msg.Ack,
+                 M0, _Pairing.NONBLOCKING_NONBLOCKING),
     ),
     channels_out=(
-        _Channel('sensed', 'base.E.clamp.sensed->base.e.fixture.sensed', '/base/E_clamp/sensed', _msg.BoolSample, _msg.Ack, M0,
-                 _Pairing.NONBLOCKING_NONBLOCKING),
+        _Channel('sensed', 'base.E.clamp.sensed->base.e.fixture.sensed', '/base/E_clamp/sensed', _std_msgs.Bool, _msg.SampleInfo, _msg.Ack,
+                 M0, _Pairing.NONBLOCKING_NONBLOCKING),
     ),
     initial={
         'valve': False,
@@ -44,6 +45,7 @@ SPEC = _Device(
     },
     params=(
     ),
+    package='handover_base',
 )
 
 

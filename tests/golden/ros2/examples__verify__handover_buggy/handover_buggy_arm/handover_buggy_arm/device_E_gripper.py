@@ -10,13 +10,14 @@ from __future__ import annotations
 
 from rssm_core.modes import Pairing as _Pairing
 from handover_buggy_interfaces import msg as _msg
+from std_msgs import msg as _std_msgs
 from handover_buggy_runtime.channels import ChannelSpec as _Channel
 from handover_buggy_runtime.device import DeviceNodeSpec as _Device
 from handover_buggy_runtime.device import main_device as _main
 from handover_buggy_runtime.params import ParamSpec as _Param
 
 T0 = ('float',)
-M0 = ('float',)
+M0 = ('msg', _std_msgs.Float64, 'data', ('float',))
 
 SPEC = _Device(
     id='arm.E.gripper',
@@ -31,12 +32,12 @@ SPEC = _Device(
     inputs=(('target_width', T0),),
     outputs=(('width', T0),),
     channels_in=(
-        _Channel('target_width', 'arm.e.hand.target_width->arm.E.gripper.target_width', '/arm/e_hand/target_width', _msg.Float64Sample, _msg.Ack, M0,
-                 _Pairing.NONBLOCKING_NONBLOCKING),
+        _Channel('target_width', 'arm.e.hand.target_width->arm.E.gripper.target_width', '/arm/e_hand/target_width', _std_msgs.Float64, _msg.SampleInfo, _msg.Ack,
+                 M0, _Pairing.NONBLOCKING_NONBLOCKING),
     ),
     channels_out=(
-        _Channel('width', 'arm.E.gripper.width->arm.e.hand.width', '/arm/E_gripper/width', _msg.Float64Sample, _msg.Ack, M0,
-                 _Pairing.NONBLOCKING_NONBLOCKING),
+        _Channel('width', 'arm.E.gripper.width->arm.e.hand.width', '/arm/E_gripper/width', _std_msgs.Float64, _msg.SampleInfo, _msg.Ack,
+                 M0, _Pairing.NONBLOCKING_NONBLOCKING),
     ),
     initial={
         'target_width': 0.0,
@@ -44,6 +45,7 @@ SPEC = _Device(
     },
     params=(
     ),
+    package='handover_buggy_arm',
 )
 
 

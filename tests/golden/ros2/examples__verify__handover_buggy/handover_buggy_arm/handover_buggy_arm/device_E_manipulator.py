@@ -31,12 +31,12 @@ SPEC = _Device(
     inputs=(('setpoint', T0),),
     outputs=(('measured', T0),),
     channels_in=(
-        _Channel('setpoint', 'arm.e.motion.setpoint->arm.E.manipulator.setpoint', '/arm/e_motion/setpoint', _msg.PoseSample, _msg.Ack, M0,
-                 _Pairing.NONBLOCKING_NONBLOCKING),
+        _Channel('setpoint', 'arm.e.motion.setpoint->arm.E.manipulator.setpoint', '/arm/e_motion/setpoint', _msg.Pose, _msg.SampleInfo, _msg.Ack,
+                 M0, _Pairing.NONBLOCKING_NONBLOCKING),
     ),
     channels_out=(
-        _Channel('measured', 'arm.E.manipulator.measured->arm.e.motion.measured', '/arm/E_manipulator/measured', _msg.PoseSample, _msg.Ack, M0,
-                 _Pairing.NONBLOCKING_NONBLOCKING),
+        _Channel('measured', 'arm.E.manipulator.measured->arm.e.motion.measured', '/arm/E_manipulator/measured', _msg.Pose, _msg.SampleInfo, _msg.Ack,
+                 M0, _Pairing.NONBLOCKING_NONBLOCKING),
     ),
     initial={
         'setpoint': {'position': [0.0, 0.0, 0.0], 'yaw': 0.0},
@@ -44,6 +44,7 @@ SPEC = _Device(
     },
     params=(
     ),
+    package='handover_buggy_arm',
 )
 
 

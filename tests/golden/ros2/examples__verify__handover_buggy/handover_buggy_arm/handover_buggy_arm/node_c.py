@@ -15,6 +15,7 @@ from collections.abc import Mapping
 from typing import Any
 
 from handover_buggy_interfaces import msg as _msg
+from std_msgs import msg as _std_msgs
 import rssm_core.values as _rt
 from rssm_core.modes import Pairing as _Pairing
 from handover_buggy_runtime.bindings import load as _load
@@ -34,9 +35,9 @@ T2 = ('record', 'PartDetection', (('visible', ('bool',)), ('pose', ('record', 'P
 T3 = ('bool',)
 T4 = ('int',)
 M0 = ('record', _msg.Pose, (('position', ('array', ('float',), 3, None)), ('yaw', ('float',))))
-M1 = ('float',)
+M1 = ('msg', _std_msgs.Float64, 'data', ('float',))
 M2 = ('record', _msg.PartDetection, (('visible', ('bool',)), ('pose', ('record', _msg.Pose, (('position', ('array', ('float',), 3, None)), ('yaw', ('float',))))), ('score', ('float',))))
-M3 = ('bool',)
+M3 = ('msg', _std_msgs.Bool, 'data', ('bool',))
 
 # ---------------------------------------------------------------- external operations
 
@@ -733,24 +734,24 @@ SPEC = _Subsystem(
         _Param('patience', T4, 250),
     ),
     inputs=(
-        _Channel('tool', 'arm.e.motion.tool->arm.c.tool', '/arm/e_motion/tool', _msg.PoseSample, _msg.Ack, M0,
-                 _Pairing.NONBLOCKING_NONBLOCKING),
-        _Channel('jaw', 'arm.e.hand.jaw->arm.c.jaw', '/arm/e_hand/jaw', _msg.Float64Sample, _msg.Ack, M1,
-                 _Pairing.NONBLOCKING_NONBLOCKING),
-        _Channel('part', 'arm.r.vision.part->arm.c.part', '/arm/r_vision/part', _msg.PartDetectionSample, _msg.Ack, M2,
-                 _Pairing.NONBLOCKING_NONBLOCKING),
-        _Channel('clamped', 'base.c.clamped->arm.c.clamped', '/base/c/clamped', _msg.BoolSample, _msg.Ack, M3,
-                 _Pairing.NONBLOCKING_BLOCKING),
+        _Channel('tool', 'arm.e.motion.tool->arm.c.tool', '/arm/e_motion/tool', _msg.Pose, _msg.SampleInfo, _msg.Ack,
+                 M0, _Pairing.NONBLOCKING_NONBLOCKING),
+        _Channel('jaw', 'arm.e.hand.jaw->arm.c.jaw', '/arm/e_hand/jaw', _std_msgs.Float64, _msg.SampleInfo, _msg.Ack,
+                 M1, _Pairing.NONBLOCKING_NONBLOCKING),
+        _Channel('part', 'arm.r.vision.part->arm.c.part', '/arm/r_vision/part', _msg.PartDetection, _msg.SampleInfo, _msg.Ack,
+                 M2, _Pairing.NONBLOCKING_NONBLOCKING),
+        _Channel('clamped', 'base.c.clamped->arm.c.clamped', '/base/c/clamped', _std_msgs.Bool, _msg.SampleInfo, _msg.Ack,
+                 M3, _Pairing.NONBLOCKING_BLOCKING),
     ),
     outputs=(
-        _Channel('goal', 'arm.c.goal->arm.e.motion.goal', '/arm/c/goal', _msg.PoseSample, _msg.Ack, M0,
-                 _Pairing.NONBLOCKING_NONBLOCKING),
-        _Channel('jaw_cmd', 'arm.c.jaw_cmd->arm.e.hand.jaw_cmd', '/arm/c/jaw_cmd', _msg.Float64Sample, _msg.Ack, M1,
-                 _Pairing.NONBLOCKING_NONBLOCKING),
-        _Channel('part_pose', 'arm.c.part_pose->base.c.part_pose', '/arm/c/part_pose', _msg.PoseSample, _msg.Ack, M0,
-                 _Pairing.BLOCKING_BLOCKING),
-        _Channel('grip_open', 'arm.c.grip_open->base.c.grip_open', '/arm/c/grip_open', _msg.BoolSample, _msg.Ack, M3,
-                 _Pairing.BLOCKING_BLOCKING),
+        _Channel('goal', 'arm.c.goal->arm.e.motion.goal', '/arm/c/goal', _msg.Pose, _msg.SampleInfo, _msg.Ack,
+                 M0, _Pairing.NONBLOCKING_NONBLOCKING),
+        _Channel('jaw_cmd', 'arm.c.jaw_cmd->arm.e.hand.jaw_cmd', '/arm/c/jaw_cmd', _std_msgs.Float64, _msg.SampleInfo, _msg.Ack,
+                 M1, _Pairing.NONBLOCKING_NONBLOCKING),
+        _Channel('part_pose', 'arm.c.part_pose->base.c.part_pose', '/arm/c/part_pose', _msg.Pose, _msg.SampleInfo, _msg.Ack,
+                 M0, _Pairing.BLOCKING_BLOCKING),
+        _Channel('grip_open', 'arm.c.grip_open->base.c.grip_open', '/arm/c/grip_open', _std_msgs.Bool, _msg.SampleInfo, _msg.Ack,
+                 M3, _Pairing.BLOCKING_BLOCKING),
     ),
     initial='pick',
     behaviours={

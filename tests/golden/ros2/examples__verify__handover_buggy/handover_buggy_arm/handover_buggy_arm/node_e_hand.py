@@ -15,6 +15,7 @@ from collections.abc import Mapping
 from typing import Any
 
 from handover_buggy_interfaces import msg as _msg
+from std_msgs import msg as _std_msgs
 import rssm_core.values as _rt
 from rssm_core.modes import Pairing as _Pairing
 from handover_buggy_runtime.bindings import load as _load
@@ -29,7 +30,7 @@ from handover_buggy_runtime.subsystem import main_subsystem as _main
 
 # ---------------------------------------------------------------- types
 T0 = ('float',)
-M0 = ('float',)
+M0 = ('msg', _std_msgs.Float64, 'data', ('float',))
 
 # ---------------------------------------------------------------- external operations
 
@@ -137,16 +138,16 @@ SPEC = _Subsystem(
         _Param('max_step', T0, 0.001),
     ),
     inputs=(
-        _Channel('jaw_cmd', 'arm.c.jaw_cmd->arm.e.hand.jaw_cmd', '/arm/c/jaw_cmd', _msg.Float64Sample, _msg.Ack, M0,
-                 _Pairing.NONBLOCKING_NONBLOCKING),
-        _Channel('width', 'arm.E.gripper.width->arm.e.hand.width', '/arm/E_gripper/width', _msg.Float64Sample, _msg.Ack, M0,
-                 _Pairing.NONBLOCKING_NONBLOCKING),
+        _Channel('jaw_cmd', 'arm.c.jaw_cmd->arm.e.hand.jaw_cmd', '/arm/c/jaw_cmd', _std_msgs.Float64, _msg.SampleInfo, _msg.Ack,
+                 M0, _Pairing.NONBLOCKING_NONBLOCKING),
+        _Channel('width', 'arm.E.gripper.width->arm.e.hand.width', '/arm/E_gripper/width', _std_msgs.Float64, _msg.SampleInfo, _msg.Ack,
+                 M0, _Pairing.NONBLOCKING_NONBLOCKING),
     ),
     outputs=(
-        _Channel('target_width', 'arm.e.hand.target_width->arm.E.gripper.target_width', '/arm/e_hand/target_width', _msg.Float64Sample, _msg.Ack, M0,
-                 _Pairing.NONBLOCKING_NONBLOCKING),
-        _Channel('jaw', 'arm.e.hand.jaw->arm.c.jaw', '/arm/e_hand/jaw', _msg.Float64Sample, _msg.Ack, M0,
-                 _Pairing.NONBLOCKING_NONBLOCKING),
+        _Channel('target_width', 'arm.e.hand.target_width->arm.E.gripper.target_width', '/arm/e_hand/target_width', _std_msgs.Float64, _msg.SampleInfo, _msg.Ack,
+                 M0, _Pairing.NONBLOCKING_NONBLOCKING),
+        _Channel('jaw', 'arm.e.hand.jaw->arm.c.jaw', '/arm/e_hand/jaw', _std_msgs.Float64, _msg.SampleInfo, _msg.Ack,
+                 M0, _Pairing.NONBLOCKING_NONBLOCKING),
     ),
     initial='drive',
     behaviours={

@@ -31,12 +31,12 @@ SPEC = _Device(
     inputs=(('goal', T0),),
     outputs=(('odometry', T0),),
     channels_in=(
-        _Channel('goal', 'base.e.drive.goal->base.E.wheels.goal', '/base/e_drive/goal', _msg.Pose2Sample, _msg.Ack, M0,
-                 _Pairing.NONBLOCKING_NONBLOCKING),
+        _Channel('goal', 'base.e.drive.goal->base.E.wheels.goal', '/base/e_drive/goal', _msg.Pose2, _msg.SampleInfo, _msg.Ack,
+                 M0, _Pairing.NONBLOCKING_NONBLOCKING),
     ),
     channels_out=(
-        _Channel('odometry', 'base.E.wheels.odometry->base.e.drive.odometry', '/base/E_wheels/odometry', _msg.Pose2Sample, _msg.Ack, M0,
-                 _Pairing.NONBLOCKING_NONBLOCKING),
+        _Channel('odometry', 'base.E.wheels.odometry->base.e.drive.odometry', '/base/E_wheels/odometry', _msg.Pose2, _msg.SampleInfo, _msg.Ack,
+                 M0, _Pairing.NONBLOCKING_NONBLOCKING),
     ),
     initial={
         'goal': {'x': 0.0, 'y': 0.0, 'theta': 0.0},
@@ -44,6 +44,7 @@ SPEC = _Device(
     },
     params=(
     ),
+    package='handover_buggy_base',
 )
 
 

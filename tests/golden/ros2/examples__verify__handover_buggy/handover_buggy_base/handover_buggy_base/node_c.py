@@ -15,6 +15,7 @@ from collections.abc import Mapping
 from typing import Any
 
 from handover_buggy_interfaces import msg as _msg
+from std_msgs import msg as _std_msgs
 import rssm_core.values as _rt
 from rssm_core.modes import Pairing as _Pairing
 from handover_buggy_runtime.bindings import load as _load
@@ -35,7 +36,7 @@ T3 = ('array', ('float',), 3)
 T4 = ('float',)
 T5 = ('int',)
 M0 = ('record', _msg.Pose2, (('x', ('float',)), ('y', ('float',)), ('theta', ('float',))))
-M1 = ('bool',)
+M1 = ('msg', _std_msgs.Bool, 'data', ('bool',))
 M2 = ('record', _msg.Pose, (('position', ('array', ('float',), 3, None)), ('yaw', ('float',))))
 
 # ---------------------------------------------------------------- external operations
@@ -624,22 +625,22 @@ SPEC = _Subsystem(
         _Param('unload_time', T5, 50),
     ),
     inputs=(
-        _Channel('odom', 'base.e.drive.odom->base.c.odom', '/base/e_drive/odom', _msg.Pose2Sample, _msg.Ack, M0,
-                 _Pairing.NONBLOCKING_NONBLOCKING),
-        _Channel('closed', 'base.e.fixture.closed->base.c.closed', '/base/e_fixture/closed', _msg.BoolSample, _msg.Ack, M1,
-                 _Pairing.NONBLOCKING_NONBLOCKING),
-        _Channel('part_pose', 'arm.c.part_pose->base.c.part_pose', '/arm/c/part_pose', _msg.PoseSample, _msg.Ack, M2,
-                 _Pairing.BLOCKING_BLOCKING),
-        _Channel('grip_open', 'arm.c.grip_open->base.c.grip_open', '/arm/c/grip_open', _msg.BoolSample, _msg.Ack, M1,
-                 _Pairing.BLOCKING_BLOCKING),
+        _Channel('odom', 'base.e.drive.odom->base.c.odom', '/base/e_drive/odom', _msg.Pose2, _msg.SampleInfo, _msg.Ack,
+                 M0, _Pairing.NONBLOCKING_NONBLOCKING),
+        _Channel('closed', 'base.e.fixture.closed->base.c.closed', '/base/e_fixture/closed', _std_msgs.Bool, _msg.SampleInfo, _msg.Ack,
+                 M1, _Pairing.NONBLOCKING_NONBLOCKING),
+        _Channel('part_pose', 'arm.c.part_pose->base.c.part_pose', '/arm/c/part_pose', _msg.Pose, _msg.SampleInfo, _msg.Ack,
+                 M2, _Pairing.BLOCKING_BLOCKING),
+        _Channel('grip_open', 'arm.c.grip_open->base.c.grip_open', '/arm/c/grip_open', _std_msgs.Bool, _msg.SampleInfo, _msg.Ack,
+                 M1, _Pairing.BLOCKING_BLOCKING),
     ),
     outputs=(
-        _Channel('target', 'base.c.target->base.e.drive.target', '/base/c/target', _msg.Pose2Sample, _msg.Ack, M0,
-                 _Pairing.NONBLOCKING_NONBLOCKING),
-        _Channel('clamp_cmd', 'base.c.clamp_cmd->base.e.fixture.clamp_cmd', '/base/c/clamp_cmd', _msg.BoolSample, _msg.Ack, M1,
-                 _Pairing.NONBLOCKING_NONBLOCKING),
-        _Channel('clamped', 'base.c.clamped->arm.c.clamped', '/base/c/clamped', _msg.BoolSample, _msg.Ack, M1,
-                 _Pairing.NONBLOCKING_BLOCKING),
+        _Channel('target', 'base.c.target->base.e.drive.target', '/base/c/target', _msg.Pose2, _msg.SampleInfo, _msg.Ack,
+                 M0, _Pairing.NONBLOCKING_NONBLOCKING),
+        _Channel('clamp_cmd', 'base.c.clamp_cmd->base.e.fixture.clamp_cmd', '/base/c/clamp_cmd', _std_msgs.Bool, _msg.SampleInfo, _msg.Ack,
+                 M1, _Pairing.NONBLOCKING_NONBLOCKING),
+        _Channel('clamped', 'base.c.clamped->arm.c.clamped', '/base/c/clamped', _std_msgs.Bool, _msg.SampleInfo, _msg.Ack,
+                 M1, _Pairing.NONBLOCKING_BLOCKING),
     ),
     initial='dock',
     behaviours={

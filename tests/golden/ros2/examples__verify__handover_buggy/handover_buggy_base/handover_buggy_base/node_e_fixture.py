@@ -15,6 +15,7 @@ from collections.abc import Mapping
 from typing import Any
 
 from handover_buggy_interfaces import msg as _msg
+from std_msgs import msg as _std_msgs
 import rssm_core.values as _rt
 from rssm_core.modes import Pairing as _Pairing
 from handover_buggy_runtime.bindings import load as _load
@@ -29,7 +30,7 @@ from handover_buggy_runtime.subsystem import main_subsystem as _main
 
 # ---------------------------------------------------------------- types
 T0 = ('bool',)
-M0 = ('bool',)
+M0 = ('msg', _std_msgs.Bool, 'data', ('bool',))
 
 # ---------------------------------------------------------------- external operations
 
@@ -133,16 +134,16 @@ SPEC = _Subsystem(
     params=(
     ),
     inputs=(
-        _Channel('clamp_cmd', 'base.c.clamp_cmd->base.e.fixture.clamp_cmd', '/base/c/clamp_cmd', _msg.BoolSample, _msg.Ack, M0,
-                 _Pairing.NONBLOCKING_NONBLOCKING),
-        _Channel('sensed', 'base.E.clamp.sensed->base.e.fixture.sensed', '/base/E_clamp/sensed', _msg.BoolSample, _msg.Ack, M0,
-                 _Pairing.NONBLOCKING_NONBLOCKING),
+        _Channel('clamp_cmd', 'base.c.clamp_cmd->base.e.fixture.clamp_cmd', '/base/c/clamp_cmd', _std_msgs.Bool, _msg.SampleInfo, _msg.Ack,
+                 M0, _Pairing.NONBLOCKING_NONBLOCKING),
+        _Channel('sensed', 'base.E.clamp.sensed->base.e.fixture.sensed', '/base/E_clamp/sensed', _std_msgs.Bool, _msg.SampleInfo, _msg.Ack,
+                 M0, _Pairing.NONBLOCKING_NONBLOCKING),
     ),
     outputs=(
-        _Channel('valve', 'base.e.fixture.valve->base.E.clamp.valve', '/base/e_fixture/valve', _msg.BoolSample, _msg.Ack, M0,
-                 _Pairing.NONBLOCKING_NONBLOCKING),
-        _Channel('closed', 'base.e.fixture.closed->base.c.closed', '/base/e_fixture/closed', _msg.BoolSample, _msg.Ack, M0,
-                 _Pairing.NONBLOCKING_NONBLOCKING),
+        _Channel('valve', 'base.e.fixture.valve->base.E.clamp.valve', '/base/e_fixture/valve', _std_msgs.Bool, _msg.SampleInfo, _msg.Ack,
+                 M0, _Pairing.NONBLOCKING_NONBLOCKING),
+        _Channel('closed', 'base.e.fixture.closed->base.c.closed', '/base/e_fixture/closed', _std_msgs.Bool, _msg.SampleInfo, _msg.Ack,
+                 M0, _Pairing.NONBLOCKING_NONBLOCKING),
     ),
     initial='actuate',
     behaviours={

@@ -15,6 +15,7 @@ from collections.abc import Mapping
 from typing import Any
 
 from lockstep_interfaces import msg as _msg
+from std_msgs import msg as _std_msgs
 import rssm_core.values as _rt
 from rssm_core.modes import Pairing as _Pairing
 from lockstep_runtime.bindings import load as _load
@@ -30,8 +31,8 @@ from lockstep_runtime.subsystem import main_subsystem as _main
 # ---------------------------------------------------------------- types
 T0 = ('bool',)
 T1 = ('float',)
-M0 = ('bool',)
-M1 = ('float',)
+M0 = ('msg', _std_msgs.Bool, 'data', ('bool',))
+M1 = ('msg', _std_msgs.Float64, 'data', ('float',))
 
 # ---------------------------------------------------------------- external operations
 
@@ -196,10 +197,10 @@ SPEC = _Subsystem(
     inputs=(
     ),
     outputs=(
-        _Channel('x', 'cell.c.x->robot.c.x', '/cell/c/x', _msg.BoolSample, _msg.Ack, M0,
-                 _Pairing.BLOCKING_BLOCKING),
-        _Channel('y', 'cell.c.y->robot.c.y', '/cell/c/y', _msg.Float64Sample, _msg.Ack, M1,
-                 _Pairing.BLOCKING_BLOCKING),
+        _Channel('x', 'cell.c.x->robot.c.x', '/cell/c/x', _std_msgs.Bool, _msg.SampleInfo, _msg.Ack,
+                 M0, _Pairing.BLOCKING_BLOCKING),
+        _Channel('y', 'cell.c.y->robot.c.y', '/cell/c/y', _std_msgs.Float64, _msg.SampleInfo, _msg.Ack,
+                 M1, _Pairing.BLOCKING_BLOCKING),
     ),
     initial='a',
     behaviours={

@@ -31,12 +31,12 @@ SPEC = _Device(
     inputs=(('command', T0),),
     outputs=(('feedback', T0),),
     channels_in=(
-        _Channel('command', 'stacker.e.arm.command->stacker.E.robot.command', '/stacker/e_arm/command', _msg.ToolCommandSample, _msg.Ack, M0,
-                 _Pairing.NONBLOCKING_NONBLOCKING),
+        _Channel('command', 'stacker.e.arm.command->stacker.E.robot.command', '/stacker/e_arm/command', _msg.ToolCommand, _msg.SampleInfo, _msg.Ack,
+                 M0, _Pairing.NONBLOCKING_NONBLOCKING),
     ),
     channels_out=(
-        _Channel('feedback', 'stacker.E.robot.feedback->stacker.e.arm.feedback', '/stacker/E_robot/feedback', _msg.ToolCommandSample, _msg.Ack, M0,
-                 _Pairing.NONBLOCKING_NONBLOCKING),
+        _Channel('feedback', 'stacker.E.robot.feedback->stacker.e.arm.feedback', '/stacker/E_robot/feedback', _msg.ToolCommand, _msg.SampleInfo, _msg.Ack,
+                 M0, _Pairing.NONBLOCKING_NONBLOCKING),
     ),
     initial={
         'command': {'pose': {'position': [0.0, 0.0, 0.0], 'yaw': 0.0}, 'suction': False},
@@ -44,6 +44,7 @@ SPEC = _Device(
     },
     params=(
     ),
+    package='palletizer_stacker',
 )
 
 

@@ -33,14 +33,15 @@ SPEC = _Device(
     channels_in=(
     ),
     channels_out=(
-        _Channel('box', 'supervisor.R.infeed.box->supervisor.r.infeed.box', '/supervisor/R_infeed/box', _msg.BoxSample, _msg.Ack, M0,
-                 _Pairing.NONBLOCKING_NONBLOCKING),
+        _Channel('box', 'supervisor.R.infeed.box->supervisor.r.infeed.box', '/supervisor/R_infeed/box', _msg.Box, _msg.SampleInfo, _msg.Ack,
+                 M0, _Pairing.NONBLOCKING_NONBLOCKING),
     ),
     initial={
         'box': {'present': False, 'height': 0.0},
     },
     params=(
     ),
+    package='palletizer_supervisor',
 )
 
 

@@ -126,12 +126,12 @@ SPEC = _Subsystem(
     params=(
     ),
     inputs=(
-        _Channel('box', 'supervisor.R.infeed.box->supervisor.r.infeed.box', '/supervisor/R_infeed/box', _msg.BoxSample, _msg.Ack, M0,
-                 _Pairing.NONBLOCKING_NONBLOCKING),
+        _Channel('box', 'supervisor.R.infeed.box->supervisor.r.infeed.box', '/supervisor/R_infeed/box', _msg.Box, _msg.SampleInfo, _msg.Ack,
+                 M0, _Pairing.NONBLOCKING_NONBLOCKING),
     ),
     outputs=(
-        _Channel('settled', 'supervisor.r.infeed.settled->supervisor.c.box', '/supervisor/r_infeed/settled', _msg.BoxSample, _msg.Ack, M0,
-                 _Pairing.NONBLOCKING_NONBLOCKING),
+        _Channel('settled', 'supervisor.r.infeed.settled->supervisor.c.box', '/supervisor/r_infeed/settled', _msg.Box, _msg.SampleInfo, _msg.Ack,
+                 M0, _Pairing.NONBLOCKING_NONBLOCKING),
     ),
     initial='debounce',
     behaviours={

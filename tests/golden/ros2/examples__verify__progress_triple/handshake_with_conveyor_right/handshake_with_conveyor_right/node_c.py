@@ -15,6 +15,7 @@ from collections.abc import Mapping
 from typing import Any
 
 from handshake_with_conveyor_interfaces import msg as _msg
+from std_msgs import msg as _std_msgs
 import rssm_core.values as _rt
 from rssm_core.modes import Pairing as _Pairing
 from handshake_with_conveyor_runtime.bindings import load as _load
@@ -29,7 +30,7 @@ from handshake_with_conveyor_runtime.subsystem import main_subsystem as _main
 
 # ---------------------------------------------------------------- types
 T0 = ('float',)
-M0 = ('float',)
+M0 = ('msg', _std_msgs.Float64, 'data', ('float',))
 
 # ---------------------------------------------------------------- external operations
 
@@ -122,12 +123,12 @@ SPEC = _Subsystem(
     params=(
     ),
     inputs=(
-        _Channel('theirs', 'left.c.mine->right.c.theirs', '/left/c/mine', _msg.Float64Sample, _msg.Ack, M0,
-                 _Pairing.BLOCKING_BLOCKING),
+        _Channel('theirs', 'left.c.mine->right.c.theirs', '/left/c/mine', _std_msgs.Float64, _msg.SampleInfo, _msg.Ack,
+                 M0, _Pairing.BLOCKING_BLOCKING),
     ),
     outputs=(
-        _Channel('mine', 'right.c.mine->left.c.theirs', '/right/c/mine', _msg.Float64Sample, _msg.Ack, M0,
-                 _Pairing.BLOCKING_BLOCKING),
+        _Channel('mine', 'right.c.mine->left.c.theirs', '/right/c/mine', _std_msgs.Float64, _msg.SampleInfo, _msg.Ack,
+                 M0, _Pairing.BLOCKING_BLOCKING),
     ),
     initial='exchange',
     behaviours={

@@ -10,13 +10,14 @@ from __future__ import annotations
 
 from rssm_core.modes import Pairing as _Pairing
 from rover_interfaces import msg as _msg
+from geometry_msgs import msg as _geometry_msgs
 from rover_runtime.channels import ChannelSpec as _Channel
 from rover_runtime.device import DeviceNodeSpec as _Device
 from rover_runtime.device import main_device as _main
 from rover_runtime.params import ParamSpec as _Param
 
 T0 = ('array', ('float',), 3)
-M0 = ('array', ('float',), 3, None)
+M0 = ('xyz', _geometry_msgs.Vector3)
 
 SPEC = _Device(
     id='rover.E.mast',
@@ -31,12 +32,12 @@ SPEC = _Device(
     inputs=(('setpoint', T0),),
     outputs=(('joints', T0),),
     channels_in=(
-        _Channel('setpoint', 'rover.e.mast.setpoint->rover.E.mast.setpoint', '/rover/e_mast/setpoint', _msg.Float64Array3Sample, _msg.Ack, M0,
-                 _Pairing.NONBLOCKING_NONBLOCKING),
+        _Channel('setpoint', 'rover.e.mast.setpoint->rover.E.mast.setpoint', '/rover/e_mast/setpoint', _geometry_msgs.Vector3, _msg.SampleInfo, _msg.Ack,
+                 M0, _Pairing.NONBLOCKING_NONBLOCKING),
     ),
     channels_out=(
-        _Channel('joints', 'rover.E.mast.joints->rover.e.mast.joints', '/rover/E_mast/joints', _msg.Float64Array3Sample, _msg.Ack, M0,
-                 _Pairing.NONBLOCKING_NONBLOCKING),
+        _Channel('joints', 'rover.E.mast.joints->rover.e.mast.joints', '/rover/E_mast/joints', _geometry_msgs.Vector3, _msg.SampleInfo, _msg.Ack,
+                 M0, _Pairing.NONBLOCKING_NONBLOCKING),
     ),
     initial={
         'setpoint': [0.0, 0.0, 0.0],
@@ -44,6 +45,7 @@ SPEC = _Device(
     },
     params=(
     ),
+    package='rover_rover',
 )
 
 

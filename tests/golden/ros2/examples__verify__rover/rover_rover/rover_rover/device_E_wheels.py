@@ -31,12 +31,12 @@ SPEC = _Device(
     inputs=(('track', T0),),
     outputs=(('odometry', T0),),
     channels_in=(
-        _Channel('track', 'rover.e.drive.track->rover.E.wheels.track', '/rover/e_drive/track', _msg.Pose2Sample, _msg.Ack, M0,
-                 _Pairing.NONBLOCKING_NONBLOCKING),
+        _Channel('track', 'rover.e.drive.track->rover.E.wheels.track', '/rover/e_drive/track', _msg.Pose2, _msg.SampleInfo, _msg.Ack,
+                 M0, _Pairing.NONBLOCKING_NONBLOCKING),
     ),
     channels_out=(
-        _Channel('odometry', 'rover.E.wheels.odometry->rover.e.drive.odometry', '/rover/E_wheels/odometry', _msg.Pose2Sample, _msg.Ack, M0,
-                 _Pairing.NONBLOCKING_NONBLOCKING),
+        _Channel('odometry', 'rover.E.wheels.odometry->rover.e.drive.odometry', '/rover/E_wheels/odometry', _msg.Pose2, _msg.SampleInfo, _msg.Ack,
+                 M0, _Pairing.NONBLOCKING_NONBLOCKING),
     ),
     initial={
         'track': {'x': 0.0, 'y': 0.0, 'heading': 0.0},
@@ -44,6 +44,7 @@ SPEC = _Device(
     },
     params=(
     ),
+    package='rover_rover',
 )
 
 

@@ -16,7 +16,7 @@ from rover_runtime.device import main_device as _main
 from rover_runtime.params import ParamSpec as _Param
 
 T0 = ('array', ('float',), 2)
-M0 = ('array', ('float',), 2, None)
+M0 = ('msg', _msg.Float64Array2Sample, 'value', ('array', ('float',), 2, None))
 
 SPEC = _Device(
     id='rover.R.imu',
@@ -33,14 +33,15 @@ SPEC = _Device(
     channels_in=(
     ),
     channels_out=(
-        _Channel('attitude', 'rover.R.imu.attitude->rover.r.sensing.attitude', '/rover/R_imu/attitude', _msg.Float64Array2Sample, _msg.Ack, M0,
-                 _Pairing.NONBLOCKING_NONBLOCKING),
+        _Channel('attitude', 'rover.R.imu.attitude->rover.r.sensing.attitude', '/rover/R_imu/attitude', _msg.Float64Array2Sample, _msg.SampleInfo, _msg.Ack,
+                 M0, _Pairing.NONBLOCKING_NONBLOCKING),
     ),
     initial={
         'attitude': [0.02, -0.04],
     },
     params=(
     ),
+    package='rover_rover',
 )
 
 

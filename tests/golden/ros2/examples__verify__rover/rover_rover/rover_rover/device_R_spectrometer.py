@@ -33,14 +33,15 @@ SPEC = _Device(
     channels_in=(
     ),
     channels_out=(
-        _Channel('reading', 'rover.R.spectrometer.reading->rover.r.sensing.reading', '/rover/R_spectrometer/reading', _msg.SpectrumSample, _msg.Ack, M0,
-                 _Pairing.NONBLOCKING_NONBLOCKING),
+        _Channel('reading', 'rover.R.spectrometer.reading->rover.r.sensing.reading', '/rover/R_spectrometer/reading', _msg.Spectrum, _msg.SampleInfo, _msg.Ack,
+                 M0, _Pairing.NONBLOCKING_NONBLOCKING),
     ),
     initial={
         'reading': {'signal': 0.0, 'noise': 0.0},
     },
     params=(
     ),
+    package='rover_rover',
 )
 
 

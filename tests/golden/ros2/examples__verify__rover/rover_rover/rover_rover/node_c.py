@@ -15,6 +15,7 @@ from collections.abc import Mapping
 from typing import Any
 
 from rover_interfaces import msg as _msg
+from std_msgs import msg as _std_msgs
 import rssm_core.values as _rt
 from rssm_core.modes import Pairing as _Pairing
 from rover_runtime.bindings import load as _load
@@ -41,7 +42,7 @@ T9 = ('float',)
 M0 = ('record', _msg.Pose2, (('x', ('float',)), ('y', ('float',)), ('heading', ('float',))))
 M1 = ('record', _msg.MastState, (('deployed', ('bool',)), ('stowed', ('bool',)), ('aligned', ('bool',))))
 M2 = ('record', _msg.ScienceReading, (('valid', ('bool',)), ('snr', ('float',))))
-M3 = ('bool',)
+M3 = ('msg', _std_msgs.Bool, 'data', ('bool',))
 M4 = ('record', _msg.DriveGoal, (('target', ('array', ('float',), 2, None)), ('max_speed', ('float',))))
 M5 = ('record', _msg.MastCommand, (('deploy', ('bool',)), ('pan', ('float',)), ('tilt', ('float',))))
 
@@ -897,20 +898,20 @@ SPEC = _Subsystem(
         _Param('aim', T5, {'deploy': True, 'pan': 0.0, 'tilt': -0.6}),
     ),
     inputs=(
-        _Channel('nav', 'rover.e.drive.nav->rover.c.nav', '/rover/e_drive/nav', _msg.Pose2Sample, _msg.Ack, M0,
-                 _Pairing.NONBLOCKING_NONBLOCKING),
-        _Channel('mast', 'rover.e.mast.mast->rover.c.mast', '/rover/e_mast/mast', _msg.MastStateSample, _msg.Ack, M1,
-                 _Pairing.NONBLOCKING_NONBLOCKING),
-        _Channel('science', 'rover.r.sensing.science->rover.c.science', '/rover/r_sensing/science', _msg.ScienceReadingSample, _msg.Ack, M2,
-                 _Pairing.NONBLOCKING_NONBLOCKING),
-        _Channel('hazard', 'rover.r.sensing.hazard->rover.c.hazard', '/rover/r_sensing/hazard', _msg.BoolSample, _msg.Ack, M3,
-                 _Pairing.NONBLOCKING_NONBLOCKING),
+        _Channel('nav', 'rover.e.drive.nav->rover.c.nav', '/rover/e_drive/nav', _msg.Pose2, _msg.SampleInfo, _msg.Ack,
+                 M0, _Pairing.NONBLOCKING_NONBLOCKING),
+        _Channel('mast', 'rover.e.mast.mast->rover.c.mast', '/rover/e_mast/mast', _msg.MastState, _msg.SampleInfo, _msg.Ack,
+                 M1, _Pairing.NONBLOCKING_NONBLOCKING),
+        _Channel('science', 'rover.r.sensing.science->rover.c.science', '/rover/r_sensing/science', _msg.ScienceReading, _msg.SampleInfo, _msg.Ack,
+                 M2, _Pairing.NONBLOCKING_NONBLOCKING),
+        _Channel('hazard', 'rover.r.sensing.hazard->rover.c.hazard', '/rover/r_sensing/hazard', _std_msgs.Bool, _msg.SampleInfo, _msg.Ack,
+                 M3, _Pairing.NONBLOCKING_NONBLOCKING),
     ),
     outputs=(
-        _Channel('drive_cmd', 'rover.c.drive_cmd->rover.e.drive.drive_cmd', '/rover/c/drive_cmd', _msg.DriveGoalSample, _msg.Ack, M4,
-                 _Pairing.NONBLOCKING_NONBLOCKING),
-        _Channel('mast_cmd', 'rover.c.mast_cmd->rover.e.mast.mast_cmd', '/rover/c/mast_cmd', _msg.MastCommandSample, _msg.Ack, M5,
-                 _Pairing.BLOCKING_BLOCKING),
+        _Channel('drive_cmd', 'rover.c.drive_cmd->rover.e.drive.drive_cmd', '/rover/c/drive_cmd', _msg.DriveGoal, _msg.SampleInfo, _msg.Ack,
+                 M4, _Pairing.NONBLOCKING_NONBLOCKING),
+        _Channel('mast_cmd', 'rover.c.mast_cmd->rover.e.mast.mast_cmd', '/rover/c/mast_cmd', _msg.MastCommand, _msg.SampleInfo, _msg.Ack,
+                 M5, _Pairing.BLOCKING_BLOCKING),
     ),
     initial='drive_to_site',
     behaviours={

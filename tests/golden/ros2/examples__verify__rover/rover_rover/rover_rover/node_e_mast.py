@@ -15,6 +15,7 @@ from collections.abc import Mapping
 from typing import Any
 
 from rover_interfaces import msg as _msg
+from geometry_msgs import msg as _geometry_msgs
 import rssm_core.values as _rt
 from rssm_core.modes import Pairing as _Pairing
 from rover_runtime.bindings import load as _load
@@ -33,7 +34,7 @@ T1 = ('array', ('float',), 3)
 T2 = ('record', 'MastState', (('deployed', ('bool',)), ('stowed', ('bool',)), ('aligned', ('bool',))))
 T3 = ('float',)
 M0 = ('record', _msg.MastCommand, (('deploy', ('bool',)), ('pan', ('float',)), ('tilt', ('float',))))
-M1 = ('array', ('float',), 3, None)
+M1 = ('xyz', _geometry_msgs.Vector3)
 M2 = ('record', _msg.MastState, (('deployed', ('bool',)), ('stowed', ('bool',)), ('aligned', ('bool',))))
 
 # ---------------------------------------------------------------- external operations
@@ -151,16 +152,16 @@ SPEC = _Subsystem(
         _Param('tol', T3, 0.01),
     ),
     inputs=(
-        _Channel('mast_cmd', 'rover.c.mast_cmd->rover.e.mast.mast_cmd', '/rover/c/mast_cmd', _msg.MastCommandSample, _msg.Ack, M0,
-                 _Pairing.BLOCKING_BLOCKING),
-        _Channel('joints', 'rover.E.mast.joints->rover.e.mast.joints', '/rover/E_mast/joints', _msg.Float64Array3Sample, _msg.Ack, M1,
-                 _Pairing.NONBLOCKING_NONBLOCKING),
+        _Channel('mast_cmd', 'rover.c.mast_cmd->rover.e.mast.mast_cmd', '/rover/c/mast_cmd', _msg.MastCommand, _msg.SampleInfo, _msg.Ack,
+                 M0, _Pairing.BLOCKING_BLOCKING),
+        _Channel('joints', 'rover.E.mast.joints->rover.e.mast.joints', '/rover/E_mast/joints', _geometry_msgs.Vector3, _msg.SampleInfo, _msg.Ack,
+                 M1, _Pairing.NONBLOCKING_NONBLOCKING),
     ),
     outputs=(
-        _Channel('setpoint', 'rover.e.mast.setpoint->rover.E.mast.setpoint', '/rover/e_mast/setpoint', _msg.Float64Array3Sample, _msg.Ack, M1,
-                 _Pairing.NONBLOCKING_NONBLOCKING),
-        _Channel('mast', 'rover.e.mast.mast->rover.c.mast', '/rover/e_mast/mast', _msg.MastStateSample, _msg.Ack, M2,
-                 _Pairing.NONBLOCKING_NONBLOCKING),
+        _Channel('setpoint', 'rover.e.mast.setpoint->rover.E.mast.setpoint', '/rover/e_mast/setpoint', _geometry_msgs.Vector3, _msg.SampleInfo, _msg.Ack,
+                 M1, _Pairing.NONBLOCKING_NONBLOCKING),
+        _Channel('mast', 'rover.e.mast.mast->rover.c.mast', '/rover/e_mast/mast', _msg.MastState, _msg.SampleInfo, _msg.Ack,
+                 M2, _Pairing.NONBLOCKING_NONBLOCKING),
     ),
     initial='move',
     behaviours={

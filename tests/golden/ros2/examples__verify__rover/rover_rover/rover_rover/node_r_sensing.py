@@ -15,6 +15,7 @@ from collections.abc import Mapping
 from typing import Any
 
 from rover_interfaces import msg as _msg
+from std_msgs import msg as _std_msgs
 import rssm_core.values as _rt
 from rssm_core.modes import Pairing as _Pairing
 from rover_runtime.bindings import load as _load
@@ -34,9 +35,9 @@ T2 = ('record', 'ScienceReading', (('valid', ('bool',)), ('snr', ('float',))))
 T3 = ('bool',)
 T4 = ('float',)
 M0 = ('record', _msg.Spectrum, (('signal', ('float',)), ('noise', ('float',))))
-M1 = ('array', ('float',), 2, None)
+M1 = ('msg', _msg.Float64Array2Sample, 'value', ('array', ('float',), 2, None))
 M2 = ('record', _msg.ScienceReading, (('valid', ('bool',)), ('snr', ('float',))))
-M3 = ('bool',)
+M3 = ('msg', _std_msgs.Bool, 'data', ('bool',))
 
 # ---------------------------------------------------------------- external operations
 
@@ -157,16 +158,16 @@ SPEC = _Subsystem(
         _Param('max_pitch', T4, 0.45),
     ),
     inputs=(
-        _Channel('reading', 'rover.R.spectrometer.reading->rover.r.sensing.reading', '/rover/R_spectrometer/reading', _msg.SpectrumSample, _msg.Ack, M0,
-                 _Pairing.NONBLOCKING_NONBLOCKING),
-        _Channel('attitude', 'rover.R.imu.attitude->rover.r.sensing.attitude', '/rover/R_imu/attitude', _msg.Float64Array2Sample, _msg.Ack, M1,
-                 _Pairing.NONBLOCKING_NONBLOCKING),
+        _Channel('reading', 'rover.R.spectrometer.reading->rover.r.sensing.reading', '/rover/R_spectrometer/reading', _msg.Spectrum, _msg.SampleInfo, _msg.Ack,
+                 M0, _Pairing.NONBLOCKING_NONBLOCKING),
+        _Channel('attitude', 'rover.R.imu.attitude->rover.r.sensing.attitude', '/rover/R_imu/attitude', _msg.Float64Array2Sample, _msg.SampleInfo, _msg.Ack,
+                 M1, _Pairing.NONBLOCKING_NONBLOCKING),
     ),
     outputs=(
-        _Channel('science', 'rover.r.sensing.science->rover.c.science', '/rover/r_sensing/science', _msg.ScienceReadingSample, _msg.Ack, M2,
-                 _Pairing.NONBLOCKING_NONBLOCKING),
-        _Channel('hazard', 'rover.r.sensing.hazard->rover.c.hazard', '/rover/r_sensing/hazard', _msg.BoolSample, _msg.Ack, M3,
-                 _Pairing.NONBLOCKING_NONBLOCKING),
+        _Channel('science', 'rover.r.sensing.science->rover.c.science', '/rover/r_sensing/science', _msg.ScienceReading, _msg.SampleInfo, _msg.Ack,
+                 M2, _Pairing.NONBLOCKING_NONBLOCKING),
+        _Channel('hazard', 'rover.r.sensing.hazard->rover.c.hazard', '/rover/r_sensing/hazard', _std_msgs.Bool, _msg.SampleInfo, _msg.Ack,
+                 M3, _Pairing.NONBLOCKING_NONBLOCKING),
     ),
     initial='watch',
     behaviours={

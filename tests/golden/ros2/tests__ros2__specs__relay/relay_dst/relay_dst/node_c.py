@@ -15,6 +15,7 @@ from collections.abc import Mapping
 from typing import Any
 
 from relay_interfaces import msg as _msg
+from std_msgs import msg as _std_msgs
 import rssm_core.values as _rt
 from rssm_core.modes import Pairing as _Pairing
 from relay_runtime.bindings import load as _load
@@ -30,7 +31,7 @@ from relay_runtime.subsystem import main_subsystem as _main
 # ---------------------------------------------------------------- types
 T0 = ('float',)
 T1 = ('record', 'Command', (('target', ('array', ('float',), 3)), ('gain', ('float',)), ('seq', ('int',))))
-M0 = ('float',)
+M0 = ('msg', _std_msgs.Float64, 'data', ('float',))
 M1 = ('record', _msg.Command, (('target', ('array', ('float',), 3, None)), ('gain', ('float',)), ('seq', ('int',))))
 
 # ---------------------------------------------------------------- constants
@@ -231,12 +232,12 @@ SPEC = _Subsystem(
     params=(
     ),
     inputs=(
-        _Channel('value', 'src.c.value->dst.c.value', '/src/c/value', _msg.Float64Sample, _msg.Ack, M0,
-                 _Pairing.BLOCKING_BLOCKING),
+        _Channel('value', 'src.c.value->dst.c.value', '/src/c/value', _std_msgs.Float64, _msg.SampleInfo, _msg.Ack,
+                 M0, _Pairing.BLOCKING_BLOCKING),
     ),
     outputs=(
-        _Channel('cmd', 'dst.c.cmd->dst.e.arm.cmd', '/dst/c/cmd', _msg.CommandSample, _msg.Ack, M1,
-                 _Pairing.BLOCKING_BLOCKING),
+        _Channel('cmd', 'dst.c.cmd->dst.e.arm.cmd', '/dst/c/cmd', _msg.Command, _msg.SampleInfo, _msg.Ack,
+                 M1, _Pairing.BLOCKING_BLOCKING),
     ),
     initial='gather',
     behaviours={

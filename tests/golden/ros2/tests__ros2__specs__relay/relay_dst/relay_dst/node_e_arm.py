@@ -120,8 +120,8 @@ SPEC = _Subsystem(
     params=(
     ),
     inputs=(
-        _Channel('cmd', 'dst.c.cmd->dst.e.arm.cmd', '/dst/c/cmd', _msg.CommandSample, _msg.Ack, M0,
-                 _Pairing.BLOCKING_BLOCKING),
+        _Channel('cmd', 'dst.c.cmd->dst.e.arm.cmd', '/dst/c/cmd', _msg.Command, _msg.SampleInfo, _msg.Ack,
+                 M0, _Pairing.BLOCKING_BLOCKING),
     ),
     outputs=(
     ),

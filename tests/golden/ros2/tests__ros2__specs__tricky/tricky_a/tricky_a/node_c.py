@@ -15,6 +15,7 @@ from collections.abc import Mapping
 from typing import Any
 
 from tricky_interfaces import msg as _msg
+from std_msgs import msg as _std_msgs
 import rssm_core.values as _rt
 from rssm_core.modes import Pairing as _Pairing
 from tricky_runtime.bindings import load as _load
@@ -33,7 +34,7 @@ T1 = ('array', ('array', ('float',), 3), 2)
 T2 = ('float',)
 T3 = ('array', ('int',), 3)
 T4 = ('record', 'Inner', (('v', ('array', ('float',), 3)), ('k', ('array', ('int',), 2))))
-M0 = ('float',)
+M0 = ('msg', _std_msgs.Float64, 'data', ('float',))
 M1 = ('record', _msg.Outer, (('inner', ('record', _msg.Inner, (('v', ('array', ('float',), 3, None)), ('k', ('array', ('int',), 2, None))))), ('flag', ('bool',)), ('w', ('float',))))
 
 # ---------------------------------------------------------------- constants
@@ -281,12 +282,12 @@ SPEC = _Subsystem(
         _Param('gain', T4, {'v': [1.0, 2.0, 3.0], 'k': [4, 5]}),
     ),
     inputs=(
-        _Channel('x', 'a.e.arm.x->a.c.x', '/a/e_arm/x', _msg.Float64Sample, _msg.Ack, M0,
-                 _Pairing.NONBLOCKING_NONBLOCKING),
+        _Channel('x', 'a.e.arm.x->a.c.x', '/a/e_arm/x', _std_msgs.Float64, _msg.SampleInfo, _msg.Ack,
+                 M0, _Pairing.NONBLOCKING_NONBLOCKING),
     ),
     outputs=(
-        _Channel('y', 'a.c.y->a.e.arm.y', '/a/c/y', _msg.OuterSample, _msg.Ack, M1,
-                 _Pairing.NONBLOCKING_NONBLOCKING),
+        _Channel('y', 'a.c.y->a.e.arm.y', '/a/c/y', _msg.Outer, _msg.SampleInfo, _msg.Ack,
+                 M1, _Pairing.NONBLOCKING_NONBLOCKING),
     ),
     initial='b',
     behaviours={

@@ -15,6 +15,7 @@ from collections.abc import Mapping
 from typing import Any
 
 from tricky_interfaces import msg as _msg
+from std_msgs import msg as _std_msgs
 import rssm_core.values as _rt
 from rssm_core.modes import Pairing as _Pairing
 from tricky_runtime.bindings import load as _load
@@ -31,7 +32,7 @@ from tricky_runtime.subsystem import main_subsystem as _main
 T0 = ('record', 'Outer', (('inner', ('record', 'Inner', (('v', ('array', ('float',), 3)), ('k', ('array', ('int',), 2))))), ('flag', ('bool',)), ('w', ('float',))))
 T1 = ('float',)
 M0 = ('record', _msg.Outer, (('inner', ('record', _msg.Inner, (('v', ('array', ('float',), 3, None)), ('k', ('array', ('int',), 2, None))))), ('flag', ('bool',)), ('w', ('float',))))
-M1 = ('float',)
+M1 = ('msg', _std_msgs.Float64, 'data', ('float',))
 
 # ---------------------------------------------------------------- constants
 k_SCALE = 2.0
@@ -120,12 +121,12 @@ SPEC = _Subsystem(
     params=(
     ),
     inputs=(
-        _Channel('y', 'a.c.y->a.e.arm.y', '/a/c/y', _msg.OuterSample, _msg.Ack, M0,
-                 _Pairing.NONBLOCKING_NONBLOCKING),
+        _Channel('y', 'a.c.y->a.e.arm.y', '/a/c/y', _msg.Outer, _msg.SampleInfo, _msg.Ack,
+                 M0, _Pairing.NONBLOCKING_NONBLOCKING),
     ),
     outputs=(
-        _Channel('x', 'a.e.arm.x->a.c.x', '/a/e_arm/x', _msg.Float64Sample, _msg.Ack, M1,
-                 _Pairing.NONBLOCKING_NONBLOCKING),
+        _Channel('x', 'a.e.arm.x->a.c.x', '/a/e_arm/x', _std_msgs.Float64, _msg.SampleInfo, _msg.Ack,
+                 M1, _Pairing.NONBLOCKING_NONBLOCKING),
     ),
     initial='m',
     behaviours={

@@ -15,6 +15,7 @@ from collections.abc import Mapping
 from typing import Any
 
 from wire_interfaces import msg as _msg
+from std_msgs import msg as _std_msgs
 import rssm_core.values as _rt
 from rssm_core.modes import Pairing as _Pairing
 from wire_runtime.bindings import load as _load
@@ -29,7 +30,7 @@ from wire_runtime.subsystem import main_subsystem as _main
 
 # ---------------------------------------------------------------- types
 T0 = ('int',)
-M0 = ('int',)
+M0 = ('msg', _std_msgs.Int64, 'data', ('int',))
 
 # ---------------------------------------------------------------- external operations
 
@@ -116,8 +117,8 @@ SPEC = _Subsystem(
     params=(
     ),
     inputs=(
-        _Channel('data', 'bn.c.data->bn.e.sink.data', '/bn/c/data', _msg.Int64Sample, _msg.Ack, M0,
-                 _Pairing.BLOCKING_NONBLOCKING),
+        _Channel('data', 'bn.c.data->bn.e.sink.data', '/bn/c/data', _std_msgs.Int64, _msg.SampleInfo, _msg.Ack,
+                 M0, _Pairing.BLOCKING_NONBLOCKING),
     ),
     outputs=(
     ),

@@ -10,13 +10,14 @@ from __future__ import annotations
 
 from rssm_core.modes import Pairing as _Pairing
 from wire_interfaces import msg as _msg
+from std_msgs import msg as _std_msgs
 from wire_runtime.channels import ChannelSpec as _Channel
 from wire_runtime.device import DeviceNodeSpec as _Device
 from wire_runtime.device import main_device as _main
 from wire_runtime.params import ParamSpec as _Param
 
 T0 = ('float',)
-M0 = ('float',)
+M0 = ('msg', _std_msgs.Float64, 'data', ('float',))
 
 SPEC = _Device(
     id='gadget.R.thermo',
@@ -33,14 +34,15 @@ SPEC = _Device(
     channels_in=(
     ),
     channels_out=(
-        _Channel('temperature', 'gadget.R.thermo.temperature->gadget.r.thermo.raw', '/gadget/R_thermo/temperature', _msg.Float64Sample, _msg.Ack, M0,
-                 _Pairing.NONBLOCKING_NONBLOCKING),
+        _Channel('temperature', 'gadget.R.thermo.temperature->gadget.r.thermo.raw', '/gadget/R_thermo/temperature', _std_msgs.Float64, _msg.SampleInfo, _msg.Ack,
+                 M0, _Pairing.NONBLOCKING_NONBLOCKING),
     ),
     initial={
         'temperature': 0.0,
     },
     params=(
     ),
+    package='wire_gadget',
 )
 
 

@@ -15,6 +15,7 @@ from collections.abc import Mapping
 from typing import Any
 
 from wire_interfaces import msg as _msg
+from std_msgs import msg as _std_msgs
 import rssm_core.values as _rt
 from rssm_core.modes import Pairing as _Pairing
 from wire_runtime.bindings import load as _load
@@ -30,7 +31,7 @@ from wire_runtime.subsystem import main_subsystem as _main
 # ---------------------------------------------------------------- types
 T0 = ('float',)
 CV0 = _rt.converter(T0)
-M0 = ('float',)
+M0 = ('msg', _std_msgs.Float64, 'data', ('float',))
 
 # ---------------------------------------------------------------- external operations
 x_smooth: Any = None
@@ -173,8 +174,8 @@ SPEC = _Subsystem(
         _Param('cold', T0, 25.0),
     ),
     inputs=(
-        _Channel('reading', 'gadget.r.thermo.reading->gadget.c.reading', '/gadget/r_thermo/reading', _msg.Float64Sample, _msg.Ack, M0,
-                 _Pairing.NONBLOCKING_NONBLOCKING),
+        _Channel('reading', 'gadget.r.thermo.reading->gadget.c.reading', '/gadget/r_thermo/reading', _std_msgs.Float64, _msg.SampleInfo, _msg.Ack,
+                 M0, _Pairing.NONBLOCKING_NONBLOCKING),
     ),
     outputs=(
     ),

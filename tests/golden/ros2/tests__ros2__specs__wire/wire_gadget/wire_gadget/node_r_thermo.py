@@ -15,6 +15,7 @@ from collections.abc import Mapping
 from typing import Any
 
 from wire_interfaces import msg as _msg
+from std_msgs import msg as _std_msgs
 import rssm_core.values as _rt
 from rssm_core.modes import Pairing as _Pairing
 from wire_runtime.bindings import load as _load
@@ -29,7 +30,7 @@ from wire_runtime.subsystem import main_subsystem as _main
 
 # ---------------------------------------------------------------- types
 T0 = ('float',)
-M0 = ('float',)
+M0 = ('msg', _std_msgs.Float64, 'data', ('float',))
 
 # ---------------------------------------------------------------- external operations
 
@@ -113,12 +114,12 @@ SPEC = _Subsystem(
     params=(
     ),
     inputs=(
-        _Channel('raw', 'gadget.R.thermo.temperature->gadget.r.thermo.raw', '/gadget/R_thermo/temperature', _msg.Float64Sample, _msg.Ack, M0,
-                 _Pairing.NONBLOCKING_NONBLOCKING),
+        _Channel('raw', 'gadget.R.thermo.temperature->gadget.r.thermo.raw', '/gadget/R_thermo/temperature', _std_msgs.Float64, _msg.SampleInfo, _msg.Ack,
+                 M0, _Pairing.NONBLOCKING_NONBLOCKING),
     ),
     outputs=(
-        _Channel('reading', 'gadget.r.thermo.reading->gadget.c.reading', '/gadget/r_thermo/reading', _msg.Float64Sample, _msg.Ack, M0,
-                 _Pairing.NONBLOCKING_NONBLOCKING),
+        _Channel('reading', 'gadget.r.thermo.reading->gadget.c.reading', '/gadget/r_thermo/reading', _std_msgs.Float64, _msg.SampleInfo, _msg.Ack,
+                 M0, _Pairing.NONBLOCKING_NONBLOCKING),
     ),
     initial='pass',
     behaviours={
