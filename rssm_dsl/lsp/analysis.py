@@ -85,6 +85,9 @@ class LazyIndex:
         if self.value is not None:
             return self, (edit,)
         if self.base is not None and len(self.edits) < MAX_REINDEX:
+            both = self.edits[-1].then(edit) if self.edits else None
+            if both is not None:       # the same agent edited again: one edit
+                return self.base, (*self.edits[:-1], both)
             return self.base, (*self.edits, edit)
         return None, ()
 
@@ -447,8 +450,8 @@ def _incremental(uri: str, path: Path, display: str, text: str, version: int | N
     """The analysis of a reparsed text, or None when the whole text must be analysed (an
     error of the loader's checks stops the compiler before the semantic passes)."""
     edit = AgentEdit(got.program, got.system,
-                     f"agent:{system_id(got.system)}/{got.replaced.name}", got.agent,
-                     got.state.shifts, got.chars, got.lines)
+                     f"agent:{system_id(got.system)}/{got.replaced.name}", got.replaced,
+                     got.agent, got.state.shifts, got.chars, got.lines)
     base, edits = previous_index.after(edit)
     loader = _loader_checks(got.state.module, display, text, got.state.shifts)
     if any(d.severity is Severity.ERROR for d in loader):

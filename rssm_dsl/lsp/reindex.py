@@ -35,10 +35,18 @@ class AgentEdit:
     program: Program          # the program of the new text (stale spans)
     system: ast.SystemDecl    # the system of the new text, holding `new`
     old_key: str
+    replaced: ast.AgentDecl   # the agent as it was (stale spans)
     new: ast.AgentDecl
     shifts: ShiftMap
     chars: int
     lines: int
+
+    def then(self, edit: AgentEdit) -> AgentEdit | None:
+        """This edit and the next as one, when the next edits the agent this one made."""
+        if edit.replaced is not self.new:
+            return None
+        return AgentEdit(edit.program, edit.system, self.old_key, self.replaced, edit.new,
+                         edit.shifts, self.chars + edit.chars, self.lines + edit.lines)
 
 
 def _signature(d: Definition) -> tuple[str, str, str, str | None, bool]:

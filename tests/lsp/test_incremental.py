@@ -159,6 +159,65 @@ def test_the_index_after_an_edit_is_the_previous_one_with_one_agent_indexed_agai
     note(f"{derived} indexes made from the previous one")
 
 
+@settings(max_examples=15, deadline=None)
+@given(seed=st.integers(0, 2**32 - 1))
+def test_the_index_after_several_edits_made_at_once_is_the_index_of_the_text(
+        seed: int) -> None:
+    """Edits typed faster than anything asks for the index: it is made from the last index
+    built and all the edits since (consecutive edits of one agent as one), and equals the
+    index built from scratch."""
+    rng = random.Random(seed)
+    path = Path("/tmp/rssm-incremental-test/chain.rssm")
+    shown = display_path(path)
+    text = spec(5)
+    previous = analyze_text("file:///chain", path, shown, text, 1, {}, None)
+    assert previous.index is not None
+    for version in range(2, 2 + rng.randrange(2, 7)):
+        text = _edit(text, rng) if rng.random() < 0.5 else _value_edit(text, rng)
+        previous = analyze_text("file:///chain", path, shown, text, version, {}, previous)
+    if previous.how == "incremental" and previous.lazy_index.base is not None:
+        whole = LazyIndex(previous.program, shifts=previous.lazy_index.shifts).get()
+        assert _same_index(previous.index, whole)
+
+
+def _value_edit(text: str, rng: random.Random) -> str:
+    """A parameter value changed in agent a2 or a4 (edits of one agent follow each other)."""
+    at = text.index(rng.choice(["agent a2 {", "agent a4 {"]))
+    value = re.compile(r"float = (\d+\.\d+)")
+    m = value.search(text, at)
+    assert m is not None
+    return text[:m.start(1)] + f"0.0{rng.randrange(1, 10)}" + text[m.end(1):]
+
+
+def test_consecutive_edits_of_one_agent_are_one_edit_of_the_index(
+        monkeypatch: pytest.MonkeyPatch) -> None:
+    import rssm_dsl.lsp.analysis as analysis_module
+
+    built: list[int] = []
+    real = analysis_module.build_index
+    monkeypatch.setattr(analysis_module, "build_index",
+                        lambda program: built.append(1) or real(program))
+    path = Path("/tmp/rssm-incremental-test/merge.rssm")
+    shown = display_path(path)
+    text = spec(5)
+    a = analyze_text("file:///merge", path, shown, text, 1, {}, None)
+    assert a.index is not None
+    rng = random.Random(3)
+    steps = ["agent a2 {", "agent a2 {", "agent a4 {", "agent a4 {", "agent a2 {"]
+    for version, agent in enumerate(steps, start=2):
+        at = text.index(agent)
+        m = re.compile(r"float = (\d+\.\d+)").search(text, at)
+        assert m is not None
+        text = text[:m.start(1)] + f"0.0{rng.randrange(1, 10)}" + text[m.end(1):]
+        a = analyze_text("file:///merge", path, shown, text, version, {}, a)
+        assert a.how == "incremental"
+    assert len(a.lazy_index.edits) == 3      # a2 twice, a4 twice, a2
+    made = a.index
+    assert len(built) == 1                   # the first text's; the rest made from it
+    whole = LazyIndex(a.program, shifts=a.lazy_index.shifts).get()
+    assert _same_index(made, whole)
+
+
 def test_an_edit_that_keeps_the_declarations_indexes_one_agent_again(
         monkeypatch: pytest.MonkeyPatch) -> None:
     """A value changed in agent a2: the index is the previous one with a2 indexed again,
