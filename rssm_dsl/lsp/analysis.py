@@ -122,12 +122,7 @@ class LazyIndex:
 
 
     def _reindexed(self, base: LazyIndex, display: str) -> SymbolIndex | None:
-        index = base.value
-        for edit in self.edits:
-            if index is None:
-                break
-            index = reindex(index, edit, display)
-        return index
+        return None if base.value is None else reindex(base.value, self.edits, display)
 
 
 def _map_index(ix: SymbolIndex, shifts: ShiftMap) -> SymbolIndex:

@@ -148,7 +148,7 @@ def test_the_index_after_an_edit_is_the_previous_one_with_one_agent_indexed_agai
         assert step.lazy_index.base is not None
         [edit] = step.lazy_index.edits
         whole = LazyIndex(step.program, shifts=step.lazy_index.shifts).get()
-        got = reindex(old_index, edit, shown)
+        got = reindex(old_index, [edit], shown)
         broken = was_broken or any(d.code in SYNTAX_CODES for d in step.diagnostics)
         if _declarations(old_index) == _declarations(whole) and not broken:
             assert got is not None
