@@ -48,7 +48,7 @@ from pygls.protocol.json_rpc import (
 )
 
 from rssm_dsl import __version__
-from rssm_dsl.lsp import framing
+from rssm_dsl.lsp import framing, memory
 from rssm_dsl.lsp.actions import Fixer
 from rssm_dsl.lsp.analysis import Analysis, ModuleView, analyze_text
 from rssm_dsl.lsp.completion import complete
@@ -219,6 +219,7 @@ class RssmServer(LanguageServer):
         self.workspace_cache: dict[Path, tuple[float, SymbolIndex]] = {}
         self.warming: dict[str, Job[object]] = {}    # building the index of an analysis
         self.warm_timers: dict[str, asyncio.TimerHandle] = {}
+        self.collect_timer: asyncio.TimerHandle | None = None
 
     @property
     def rssm_protocol(self) -> RssmProtocol:
@@ -343,6 +344,7 @@ class RssmServer(LanguageServer):
             self.publish(analysis)
             self._wake(uri)
             self._warm(uri, analysis)
+            self._settle()
         if got[1] != analysis.version:
             if uri not in self.timers and uri not in self.jobs:
                 self.schedule(uri, 0)
@@ -374,6 +376,15 @@ class RssmServer(LanguageServer):
                 lambda f: self.warming.pop(uri, None) if self.warming.get(uri) is job else None)
 
         self.warm_timers[uri] = asyncio.get_running_loop().call_later(WARM_SECONDS, start)
+
+    def _settle(self) -> None:
+        """The objects of the analysis just published out of the collector's way, and a
+        full collection once the server is idle (rssm_dsl/lsp/memory.py)."""
+        memory.settle()
+        if self.collect_timer is not None:
+            self.collect_timer.cancel()
+        self.collect_timer = asyncio.get_running_loop().call_later(memory.IDLE_SECONDS,
+                                                                   memory.collect)
 
     def _cool(self, uri: str) -> None:
         timer = self.warm_timers.pop(uri, None)
