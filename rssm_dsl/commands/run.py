@@ -1,4 +1,5 @@
-"""`rssmc run`: the paper's section V experiment on the simulated LWR4+ (docs/run.md)."""
+"""`rssmc run`: the paper's section V experiment on the simulated LWR4+, or the joint-space
+run of an arm of stdlib/robots (docs/run.md)."""
 
 from __future__ import annotations
 
@@ -64,8 +65,10 @@ def run_cmd(
     control subsystem's circles, clockwise then counter-clockwise, tracked by the virtual
     effector's impedance control, executed by the HPN interpreter on simulated time. Writes
     trajectory.csv, fig19.png (the paper's Fig. 19) and summary.json, and prints the
-    duration, real-time factor, tracking error and behaviour switches. Exit 0 when the
-    experiment ran, 1 on errors in the specification or the run, 2 on usage errors."""
+    duration, real-time factor, tracking error and behaviour switches. A system with an arm of
+    the standard library's robots module tracking joint set points instead is run in joint
+    space (trajectory.csv, joints.png, summary.json). Exit 0 when the experiment ran, 1 on
+    errors in the specification or the run, 2 on usage errors."""
 
     def run() -> int:
         if damping is not None and damping not in DAMPING:
@@ -111,6 +114,10 @@ def _run(file: Path, output: Path | None, until: float, switches: int, damping: 
         return EXIT_ERRORS
     if comp.diagnostics and fmt is Format.text and not quiet:
         report(comp, fmt)
+    if _joint_space(comp):
+        return _run_joints(comp, file, output, until, switches,
+                           damping is not None or viewer or video is not None, trace, seed,
+                           fmt, quiet)
     warnings: list[Diagnostic] = []
     show = _open_viewer(comp, warnings, fmt) if viewer else None
     options = RunOptions(until=until, switches=switches, damping=damping, seed=seed,
@@ -141,6 +148,64 @@ def _run(file: Path, output: Path | None, until: float, switches: int, damping: 
     if not exp.ok:
         if fmt is Format.text:
             typer.echo(f"{file}: {exp.message}", err=True)
+        return EXIT_ERRORS
+    return EXIT_OK
+
+
+def _joint_space(comp: Compilation) -> bool:
+    """No LWR4+ experiment, but an arm of stdlib/robots tracking joint set points."""
+    from rssm_dsl.diagnostics import Diagnostic
+    from rssm_dsl.run.joints import find_joint_rig
+    from rssm_dsl.run.rig import find_rig
+
+    assert comp.system is not None
+    return (isinstance(find_rig(comp.system), Diagnostic)
+            and not isinstance(find_joint_rig(comp.system), Diagnostic))
+
+
+def _run_joints(comp: Compilation, file: Path, output: Path | None, until: float,
+                switches: int, lwr4_only: bool, trace: Path | None, seed: int, fmt: Format,
+                quiet: bool) -> int:
+    """The joint-space run of an arm of stdlib/robots (docs/run.md, "Other robots")."""
+    from rssm_dsl.emit.write import write_outputs
+    from rssm_dsl.run.joints import (
+        JointRunError,
+        joint_output_files,
+        joint_summary_dict,
+        joint_summary_text,
+        run_joint_tracking,
+    )
+
+    assert comp.system is not None
+    if lwr4_only:
+        typer.echo("rssmc: --damping, --viewer and --video apply to the LWR4+ experiment "
+                   f"only, not to {file} (a joint-space run)", err=True)
+        return EXIT_USAGE
+    try:
+        r = run_joint_tracking(comp, until, seed, switches, trace)
+    except JointRunError as e:
+        _show(comp, e.diagnostics, fmt)
+        if fmt is Format.json:
+            typer.echo(json.dumps({"reason": "setup", "diagnostics":
+                                   [d.to_json() for d in e.diagnostics]}, indent=2))
+        return EXIT_ERRORS
+    _show(comp, list(r.diagnostics), fmt)
+    target = output if output is not None else Path("out") / f"{file.stem}-run"
+    written = write_outputs(target, joint_output_files(r))
+    if fmt is Format.json:
+        data = joint_summary_dict(r)
+        data["outputs"] = [str(p) for p in written]
+        typer.echo(json.dumps(data, indent=2))
+    elif not quiet:
+        typer.echo(joint_summary_text(r, comp.system.name))
+        typer.echo(f"  wrote      {', '.join(p.name for p in written)} to {target}")
+        if trace is not None:
+            typer.echo(f"  trace      {trace}")
+    if r.reason == "interrupted":
+        return EXIT_INTERRUPTED
+    if not r.ok:
+        if fmt is Format.text:
+            typer.echo(f"{file}: {r.message}", err=True)
         return EXIT_ERRORS
     return EXIT_OK
 
