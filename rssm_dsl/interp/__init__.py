@@ -9,9 +9,27 @@ program (binding the flat net to operations and conditions), engine (token game)
 (firing rules and macro steps compiled to Python), clock, channels, state, scheduler
 (deterministic and concurrent runs), trace, summary, device (the device interface), replay
 (verifier counterexamples and traces).
+
+The names below are imported when first used, so that a device module importing
+``rssm_dsl.interp.device`` (the device interface) does not load the compiler with them.
 """
 
-from rssm_dsl.interp.program import RunConfig, Runtime, build_runtime
-from rssm_dsl.interp.scheduler import RunResult, SimOptions, Simulator
+from __future__ import annotations
+
+import importlib
+from typing import TYPE_CHECKING, Any
+
+if TYPE_CHECKING:
+    from rssm_dsl.interp.program import RunConfig, Runtime, build_runtime
+    from rssm_dsl.interp.scheduler import RunResult, SimOptions, Simulator
 
 __all__ = ["RunConfig", "RunResult", "Runtime", "SimOptions", "Simulator", "build_runtime"]
+_MODULE = {"RunConfig": "program", "Runtime": "program", "build_runtime": "program",
+           "RunResult": "scheduler", "SimOptions": "scheduler", "Simulator": "scheduler"}
+
+
+def __getattr__(name: str) -> Any:
+    module = _MODULE.get(name)
+    if module is None:
+        raise AttributeError(f"module {__name__!r} has no attribute {name!r}")
+    return getattr(importlib.import_module(f"rssm_dsl.interp.{module}"), name)
