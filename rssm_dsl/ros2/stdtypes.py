@@ -33,7 +33,7 @@ from rssm_dsl.pycode import tuple_source
 from rssm_dsl.semantics.loader import display_path
 from rssm_dsl.semantics.model import Buffer, System
 from rssm_dsl.semantics.types import BOOL, FLOAT, INT, ArrayT, RangeT, RecordT, Type
-from rssm_dsl.source import Span
+from rssm_dsl.source import Span, split_lines
 
 PACKAGES = ("std_msgs", "geometry_msgs", "sensor_msgs")
 MAPPING_SUFFIX = ".ros2.toml"
@@ -222,7 +222,7 @@ def mapping_path(spec: Path) -> Path:
 def _span(path: Path, text: str, needle: str | None) -> Span:
     line = 1
     if needle:
-        for k, content in enumerate(text.splitlines(), start=1):
+        for k, content in enumerate(split_lines(text), start=1):
             if needle in content:
                 line = k
                 break

@@ -112,7 +112,9 @@ def test_whole_system_from_one_launch_file(ros_venv: toolchain.RosVenv, build_di
 
     # the replayed file was found in the package's share folder (launched from elsewhere)
     levels = _received(tmp_path / "trace" / "sensor.r.feed.jsonl", "level")
-    assert len(levels) >= 10 and set(levels) <= LEVELS and {1.0, 5.0} <= set(levels), levels
+    # (the first rows may be replayed before r.feed's subscription is matched: the device's
+    # output is non-blocking, so only values of the file, up to its last, are certain)
+    assert len(levels) >= 10 and set(levels) <= LEVELS and 5.0 in levels, levels
     where = _received(tmp_path / "trace" / "sensor.c.jsonl", "where")
     assert where and {tuple(w) for w in where} <= SPOTS | {(0.0, 0.0, 0.0)}, where
     # the record went through geometry_msgs/TwistStamped and back
