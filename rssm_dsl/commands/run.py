@@ -40,7 +40,8 @@ def run_cmd(
         "has not switched behaviours --switches times by then.")] = 30.0,
     switches: Annotated[int, typer.Option(
         "--switches", min=0, help="Stop after this many behaviour switches of the control "
-        "subsystem (2: cw -> ccw -> cw, one circle each way); 0: run until --until.")] = 2,
+        "subsystem (2: cw -> ccw -> cw, one circle each way; of the first arm's in a "
+        "joint-space run of several arms); 0: run until --until.")] = 2,
     damping: Annotated[str | None, typer.Option(
         "--damping", help="velocity-error: F = K dP + D (dP_des/dt - dP/dt); paper: the "
         "paper's F = K dP - D dP/dt (default: the specification's "
@@ -67,7 +68,8 @@ def run_cmd(
     trajectory.csv, fig19.png (the paper's Fig. 19) and summary.json, and prints the
     duration, real-time factor, tracking error and behaviour switches. A system with an arm of
     the standard library's robots module tracking joint set points instead is run in joint
-    space (trajectory.csv, joints.png, summary.json). Exit 0 when the experiment ran, 1 on
+    space (trajectory.csv, joints.png, summary.json; with several such arms, one trajectory
+    per arm). Exit 0 when the experiment ran, 1 on
     errors in the specification or the run, 2 on usage errors."""
 
     def run() -> int:
@@ -155,25 +157,24 @@ def _run(file: Path, output: Path | None, until: float, switches: int, damping: 
 def _joint_space(comp: Compilation) -> bool:
     """No LWR4+ experiment, but an arm of stdlib/robots tracking joint set points."""
     from rssm_dsl.diagnostics import Diagnostic
-    from rssm_dsl.run.joints import find_joint_rig
+    from rssm_dsl.run.joints import find_joint_rigs
     from rssm_dsl.run.rig import find_rig
 
     assert comp.system is not None
     return (isinstance(find_rig(comp.system), Diagnostic)
-            and not isinstance(find_joint_rig(comp.system), Diagnostic))
+            and not isinstance(find_joint_rigs(comp.system), Diagnostic))
 
 
 def _run_joints(comp: Compilation, file: Path, output: Path | None, until: float,
                 switches: int, lwr4_only: bool, trace: Path | None, seed: int, fmt: Format,
                 quiet: bool) -> int:
-    """The joint-space run of an arm of stdlib/robots (docs/run.md, "Other robots")."""
+    """The joint-space run of the arms of stdlib/robots (docs/run.md, "Other robots")."""
     from rssm_dsl.emit.write import write_outputs
-    from rssm_dsl.run.joints import (
-        JointRunError,
-        joint_output_files,
-        joint_summary_dict,
-        joint_summary_text,
-        run_joint_tracking,
+    from rssm_dsl.run.joints import JointRunError, run_arms_tracking
+    from rssm_dsl.run.joints_report import (
+        arms_output_files,
+        arms_summary_dict,
+        arms_summary_text,
     )
 
     assert comp.system is not None
@@ -182,22 +183,23 @@ def _run_joints(comp: Compilation, file: Path, output: Path | None, until: float
                    f"only, not to {file} (a joint-space run)", err=True)
         return EXIT_USAGE
     try:
-        r = run_joint_tracking(comp, until, seed, switches, trace)
+        runs = run_arms_tracking(comp, until, seed, switches, trace)
     except JointRunError as e:
         _show(comp, e.diagnostics, fmt)
         if fmt is Format.json:
             typer.echo(json.dumps({"reason": "setup", "diagnostics":
                                    [d.to_json() for d in e.diagnostics]}, indent=2))
         return EXIT_ERRORS
+    r = runs[0]
     _show(comp, list(r.diagnostics), fmt)
     target = output if output is not None else Path("out") / f"{file.stem}-run"
-    written = write_outputs(target, joint_output_files(r))
+    written = write_outputs(target, arms_output_files(runs))
     if fmt is Format.json:
-        data = joint_summary_dict(r)
+        data = arms_summary_dict(runs)
         data["outputs"] = [str(p) for p in written]
         typer.echo(json.dumps(data, indent=2))
     elif not quiet:
-        typer.echo(joint_summary_text(r, comp.system.name))
+        typer.echo(arms_summary_text(runs, comp.system.name))
         typer.echo(f"  wrote      {', '.join(p.name for p in written)} to {target}")
         if trace is not None:
             typer.echo(f"  trace      {trace}")

@@ -1,22 +1,22 @@
-"""Joint-space tracking of any arm of the standard library's ``robots`` module.
+"""Joint-space tracking of the arms of the standard library's ``robots`` module.
 
-:func:`run_joint_tracking` runs a compiled system deterministically on simulated time with an
-observer on its first device bound to ``rssm_stdlib.robots.device:MujocoArmDevice``, and
-measures how the joints follow the joint set points (a record with ``q: float[n]`` and
+:func:`run_arms_tracking` runs a compiled system deterministically on simulated time with an
+observer on every device bound to ``rssm_stdlib.robots.device:MujocoArmDevice``, and measures
+how each arm's joints follow the joint set points (a record with ``q: float[n]`` and
 optionally ``dq: float[n]``) that the virtual effector driving the device receives from
 another subsystem. The desired joint positions at a device step at time ``t`` are the last set
 point ``(q, dq)`` sent on that channel, held to first order from the tick ``t_c`` of the
 subsystem that sent it: ``q + dq (t - t_c)`` (as the Cartesian recorder of ``rssmc run``).
-The run may stop after ``switches`` behaviour switches of that subsystem.
+The run may stop after ``switches`` behaviour switches of the first arm's control subsystem
+(the arms in the order the system declares their devices). :func:`run_joint_tracking` is the
+same run measured on the first arm.
 
-``rssmc run`` uses it for a system without the LWR4+ experiment's parts
-(:func:`joint_output_files`, :func:`joint_summary_text`); ``bench/panda.py`` for its figures.
+``rssmc run`` uses it for a system without the LWR4+ experiment's parts (its outputs:
+joints_report.py); ``bench/panda.py`` for its figures.
 """
 
 from __future__ import annotations
 
-import io
-import json
 import time
 from dataclasses import dataclass
 from pathlib import Path
@@ -27,7 +27,7 @@ from numpy.typing import NDArray
 
 from rssm_dsl.diagnostics import Diagnostic
 from rssm_dsl.pipeline import Compilation
-from rssm_dsl.semantics.model import System
+from rssm_dsl.semantics.model import Device, System
 from rssm_dsl.semantics.types import ArrayT, RecordT
 
 ARM_BINDING = "rssm_stdlib.robots.device:MujocoArmDevice"
@@ -87,13 +87,7 @@ def _is_joint_setpoint(t: Any) -> bool:
     return isinstance(t, RecordT) and isinstance(t.field("q"), ArrayT)
 
 
-def find_joint_rig(system: System) -> JointRig | Diagnostic:
-    devices = [d for d in system.devices() if d.binding == ARM_BINDING]
-    if not devices:
-        return Diagnostic("E870", f"system {system.name} has no device bound to "
-                          f"{ARM_BINDING}", system.span)
-    device = devices[0]
-    subsystems = {s.id for s in system.subsystems()}
+def _rig_of(system: System, device: Device, subsystems: set[str]) -> JointRig | Diagnostic:
     feeding = [ch for ch in system.channels
                if ch.consumer.owner == device.id and ch.producer.owner in subsystems]
     if not feeding:
@@ -108,6 +102,29 @@ def find_joint_rig(system: System) -> JointRig | Diagnostic:
                           "`q: float[n]`) from another subsystem", device.span)
     ch = setpoints[0]
     return JointRig(device.id, effector, ch.producer.owner, ch.id)
+
+
+def find_joint_rigs(system: System) -> list[JointRig] | Diagnostic:
+    """One rig per device bound to the arm class, in declaration order; E870 at the first
+    device whose effector or set points are missing."""
+    devices = [d for d in system.devices() if d.binding == ARM_BINDING]
+    if not devices:
+        return Diagnostic("E870", f"system {system.name} has no device bound to "
+                          f"{ARM_BINDING}", system.span)
+    subsystems = {s.id for s in system.subsystems()}
+    rigs: list[JointRig] = []
+    for device in devices:
+        rig = _rig_of(system, device, subsystems)
+        if isinstance(rig, Diagnostic):
+            return rig
+        rigs.append(rig)
+    return rigs
+
+
+def find_joint_rig(system: System) -> JointRig | Diagnostic:
+    """The first arm's rig (:func:`find_joint_rigs`)."""
+    rigs = find_joint_rigs(system)
+    return rigs if isinstance(rigs, Diagnostic) else rigs[0]
 
 
 class _Observer:
@@ -167,26 +184,35 @@ class JointRunError(ValueError):
 
 def run_joint_tracking(comp: Compilation, until: float, seed: int = 0, switches: int = 0,
                        trace: Path | None = None) -> JointTracking:
-    """Run ``comp`` until ``until`` s (or ``switches`` behaviour switches of the control
-    subsystem, if positive) and measure the joint tracking; JointRunError when the system has
-    no such rig or cannot be set up."""
+    """Run ``comp`` until ``until`` s (or ``switches`` behaviour switches of the first arm's
+    control subsystem, if positive) and measure the first arm's joint tracking; JointRunError
+    when the system has no such rig or cannot be set up."""
+    return run_arms_tracking(comp, until, seed, switches, trace)[0]
+
+
+def run_arms_tracking(comp: Compilation, until: float, seed: int = 0, switches: int = 0,
+                      trace: Path | None = None) -> tuple[JointTracking, ...]:
+    """Run ``comp`` as :func:`run_joint_tracking` does and measure every arm's tracking (one
+    result per arm, in declaration order, sharing the run's figures)."""
     from rssm_dsl.interp import RunConfig, SimOptions, Simulator, build_runtime
     from rssm_dsl.interp.errors import SetupError
     from rssm_dsl.interp.trace import TraceWriter
 
     system = comp.system
     if system is None or not comp.ok:
-        raise ValueError("run_joint_tracking needs a specification that compiled cleanly")
-    rig = find_joint_rig(system)
-    if isinstance(rig, Diagnostic):
-        raise JointRunError([rig])
+        raise ValueError("run_arms_tracking needs a specification that compiled cleanly")
+    rigs = find_joint_rigs(system)
+    if isinstance(rigs, Diagnostic):
+        raise JointRunError([rigs])
     try:
         rt = build_runtime(comp, RunConfig(base_dir=comp.path.resolve().parent))
     except SetupError as e:
         raise JointRunError(list(e.diagnostics)) from None
-    observer = _Observer(rt, rig, switches if switches > 0 else -1)
-    device: Any = rt.devices[rig.device].impl
-    device.observers.append(observer)
+    observers = [_Observer(rt, rig, switches if switches > 0 and k == 0 else -1)
+                 for k, rig in enumerate(rigs)]
+    devices: list[Any] = [rt.devices[rig.device].impl for rig in rigs]
+    for device, observer in zip(devices, observers, strict=True):
+        device.observers.append(observer)
     tracer = TraceWriter(trace) if trace is not None else None
     rt.tracer = tracer
     sim = Simulator(rt, SimOptions(seed=seed, until=until,
@@ -198,99 +224,16 @@ def run_joint_tracking(comp: Compilation, until: float, seed: int = 0, switches:
         wall, cpu = time.perf_counter() - wall0, time.process_time() - cpu0
         if tracer is not None:
             tracer.close()
-    n = len(observer.t)
-    return JointTracking(
-        rig=rig, t=np.array(observer.t, dtype=np.float64),
-        desired=np.array(observer.desired, dtype=np.float64).reshape(n, -1),
-        actual=np.array(observer.actual, dtype=np.float64).reshape(n, -1),
-        simulated=result.time, wall=wall, device_steps=rt.devices[rig.device].steps,
-        firings=result.steps, reason=result.reason, ok=result.ok,
-        diagnostics=tuple(result.diagnostics), message=result.message,
-        robot=getattr(getattr(device, "robot", None), "name", ""),
-        behaviour=tuple(observer.behaviour), switches=tuple(observer.switches), cpu=cpu)
-
-
-def joint_summary_dict(r: JointTracking) -> dict[str, Any]:
-    return {
-        "system_rig": {"control": r.rig.control, "effector": r.rig.effector,
-                       "device": r.rig.device, "robot": r.robot},
-        "reason": r.reason, "message": r.message,
-        "simulated_s": r.simulated, "wall_s": r.wall, "cpu_s": r.cpu,
-        "real_time_factor": r.simulated / r.wall if r.wall > 0 else None,
-        "us_per_device_step": r.us_per_step, "device_steps": r.device_steps,
-        "firings": r.firings, "samples": len(r.t),
-        "rms_error_rad": r.rms if len(r.t) else None,
-        "max_error_rad": r.max_abs if len(r.t) else None,
-        "rms_error_per_joint_rad": [float(x) for x in r.rms_per_joint] if len(r.t) else [],
-        "switches": [{"time": t, "from": a, "to": b} for t, a, b in r.switches],
-    }
-
-
-def joint_trajectory_csv(r: JointTracking) -> str:
-    dof = r.actual.shape[1] if r.actual.ndim == 2 else 0
-    head = (["t"] + [f"q{i + 1}_des" for i in range(dof)] + [f"q{i + 1}" for i in range(dof)]
-            + ["error", "behaviour"])
-    rows = [",".join(head)]
-    err = np.sqrt(np.sum(r.error ** 2, axis=1)) if len(r.t) else np.zeros(0)
-    for k in range(len(r.t)):
-        values = [r.t[k], *r.desired[k], *r.actual[k], err[k]]
-        rows.append(",".join(f"{v:.9g}" for v in values) + f",{r.behaviour[k]}")
-    return "\n".join(rows) + "\n"
-
-
-def joint_figure_png(r: JointTracking, dpi: int = 110) -> bytes:
-    """(a) each joint and its desired position over time; (b) each joint's error (mrad)."""
-    from matplotlib.backends.backend_agg import FigureCanvasAgg
-    from matplotlib.figure import Figure
-
-    fig = Figure(figsize=(11.0, 6.5), layout="constrained")
-    FigureCanvasAgg(fig)
-    top, bottom = fig.subplots(2, 1, sharex=True)
-    for j in range(r.actual.shape[1] if len(r.t) else 0):
-        line = top.plot(r.t, r.actual[:, j], lw=1.2, label=f"q{j + 1}")[0]
-        top.plot(r.t, r.desired[:, j], ls="--", lw=0.9, color=line.get_color())
-        bottom.plot(r.t, r.error[:, j] * 1e3, lw=1.0, color=line.get_color())
-    for t, _, _ in r.switches:
-        for ax in (top, bottom):
-            ax.axvline(t, color="0.6", lw=0.8, ls=":")
-    top.set_ylabel("joint position (rad); desired dashed")
-    top.set_title(f"(a) joints of {r.rig.device} ({r.robot})", loc="left")
-    top.legend(ncols=7, fontsize=8, loc="upper right")
-    bottom.set_ylabel("error q - q_des (mrad)")
-    bottom.set_xlabel("t (s)")
-    bottom.set_title(f"(b) tracking error: RMS {r.rms * 1e3:.3f} mrad" if len(r.t) else
-                     "(b) tracking error", loc="left")
-    for ax in (top, bottom):
-        ax.grid(True, lw=0.4, alpha=0.5)
-    buf = io.BytesIO()
-    fig.savefig(buf, format="png", dpi=dpi)
-    return buf.getvalue()
-
-
-def joint_output_files(r: JointTracking) -> dict[str, str | bytes]:
-    return {
-        "trajectory.csv": joint_trajectory_csv(r),
-        "summary.json": json.dumps(joint_summary_dict(r), indent=2) + "\n",
-        "joints.png": joint_figure_png(r),
-    }
-
-
-def joint_summary_text(r: JointTracking, system: str) -> str:
-    lines = [f"{system}: {r.rig.control} -> {r.rig.effector} -> {r.rig.device} "
-             f"({r.robot} simulated by MuJoCo, joint space)"]
-    lines.append(f"  simulated  {r.simulated:.3f} s: {r.device_steps} device steps, "
-                 f"{r.firings:,} firings ({r.message})")
-    rtf = r.simulated / r.wall if r.wall > 0 else float("inf")
-    lines.append(f"  wall       {r.wall:.3f} s: {rtf:.1f}x real time, {r.us_per_step:.1f} us "
-                 f"per device step")
-    if len(r.t):
-        lines.append(f"  tracking   joint RMS {r.rms * 1e3:.3f} mrad, max {r.max_abs * 1e3:.3f} "
-                     f"mrad, {len(r.t)} samples")
-        lines.append("  per joint  RMS " + " ".join(f"{x * 1e3:.3f}" for x in r.rms_per_joint)
-                     + " mrad")
-    else:
-        lines.append("  tracking   no set point arrived")
-    if r.switches:
-        lines.append(f"  switches   {r.rig.control}: " + "; ".join(
-            f"{a} -> {b} at {t:.2f} s" for t, a, b in r.switches))
-    return "\n".join(lines)
+    runs = []
+    for rig, device, observer in zip(rigs, devices, observers, strict=True):
+        n = len(observer.t)
+        runs.append(JointTracking(
+            rig=rig, t=np.array(observer.t, dtype=np.float64),
+            desired=np.array(observer.desired, dtype=np.float64).reshape(n, -1),
+            actual=np.array(observer.actual, dtype=np.float64).reshape(n, -1),
+            simulated=result.time, wall=wall, device_steps=rt.devices[rig.device].steps,
+            firings=result.steps, reason=result.reason, ok=result.ok,
+            diagnostics=tuple(result.diagnostics), message=result.message,
+            robot=getattr(getattr(device, "robot", None), "name", ""),
+            behaviour=tuple(observer.behaviour), switches=tuple(observer.switches), cpu=cpu))
+    return tuple(runs)
