@@ -13,9 +13,10 @@ It understands the subset of the launch API the generator emits and refuses anyt
 ``DeclareLaunchArgument`` (name, default_value, description), ``SetEnvironmentVariable``
 (name, value: it applies to the nodes after it), and the substitutions
 ``LaunchConfiguration`` (a launch argument's value) and ``EnvironmentVariable`` (name,
-default_value). Launch arguments are given as ``NAME:=VALUE`` after the files, as to
-``ros2 launch``. It depends on the standard library only, so any Python 3.11 can run it in
-the environment of a built workspace (``. install/setup.bash``):
+default_value), also as values of a parameters dict (``parameters=[FILE, {NAME: VALUE}]``:
+given to the node as ``-p NAME:=VALUE``, read as YAML). Launch arguments are given as
+``NAME:=VALUE`` after the files, as to ``ros2 launch``. It depends on the standard library
+only, so any Python 3.11 can run it in the environment of a built workspace (``. install/setup.bash``):
 
     python -m rssm_dsl.ros2.launch_runner install/PKG/share/PKG/launch/AGENT.launch.py ...
     python -m rssm_dsl.ros2.launch_runner install/S_bringup/share/S_bringup/launch/system.launch.py domain_id:=7
@@ -287,12 +288,23 @@ def plan(files: Sequence[Path], arguments: dict[str, str] | None = None,
             elif isinstance(action, SetEnvironmentVariable):
                 context.env[text(action.name, context)] = text(action.value, context)
             else:
+                action.parameters = [_parameters(p, context) for p in action.parameters]
                 out.append((action, dict(context.env)))
     unknown = sorted(set(given) - declared)
     if unknown:
         raise LaunchError(f"launch argument(s) {', '.join(unknown)} not declared by the "
                           "launch file(s)")
     return out
+
+
+def _parameters(entry: Any, context: Context) -> Any:
+    """A Node's parameters entry with its substitutions performed: a file, or a dict whose
+    values may be substitutions (their text goes to rcl, which reads it as YAML, as
+    launch_ros does: ``"true"`` is a bool)."""
+    if not isinstance(entry, dict):
+        return text(entry, context) if isinstance(entry, Substitution) else entry
+    return {str(k): text(v, context) if isinstance(v, Substitution | list | tuple) else v
+            for k, v in entry.items()}
 
 
 def command(node: NodeAction, extra: Sequence[str] = ()) -> list[str]:

@@ -21,7 +21,7 @@ field ``items``.
 
 A channel whose type has no standard counterpart (:mod:`rssm_dsl.ros2.stdtypes`) carries
 its record's message, or a ``<Type>Sample`` with the one field ``value``; next to the data
-topic, every producer publishes ``SampleInfo`` (``epoch``, ``seq``, ``digest``), blocking
+topic, every producer publishes ``SampleInfo`` (``epoch``, ``seq``, ``digest``, ``stamp``), blocking
 producers get ``Ack`` (``epoch``, ``seq``) back; every subsystem publishes
 ``SubsystemStatus`` on its diagnostics topic.
 """
@@ -44,6 +44,9 @@ INFO_FIELDS = (
     ("uint32", "epoch", "the producer's epoch (a random number drawn at its start)"),
     ("uint64", "seq", "the producer's sample number, from 1"),
     ("uint64", "digest", "64 bits of BLAKE2b over the content of the data message it describes"),
+    ("builtin_interfaces/Time", "stamp",
+     "the producer's clock when it first published the sample (ROS time: /clock with "
+     "use_sim_time)"),
 )
 STATUS_FIELDS = (
     ("builtin_interfaces/Time", "stamp", ""),

@@ -32,6 +32,8 @@ from dataclasses import dataclass
 from pathlib import Path
 
 REQUIREMENTS = Path(__file__).resolve().with_name("requirements-jazzy.txt")
+# MuJoCo and Pinocchio, for workspaces whose nodes simulate an arm (ensure_extra)
+PHYSICS = Path(__file__).resolve().with_name("requirements-physics.txt")
 WHEEL_PYTHON_PREFIX = "/opt/python/cp311-cp311"
 STAMP = ".rssm-requirements.sha256"
 
@@ -124,6 +126,22 @@ def ensure_venv(path: Path, requirements: Path = REQUIREMENTS, timeout: float = 
     return venv
 
 
+def ensure_extra(venv: RosVenv, requirements: Path = PHYSICS,
+                 timeout: float = 900.0) -> RosVenv:
+    """``venv`` with the packages of ``requirements`` installed too (once: a stamp per file
+    records its hash; recreating the venv removes it). Safe to call from several processes."""
+    digest = _digest(requirements)
+    stamp = venv.path / f".rssm-{requirements.stem}.sha256"
+    with _locked(venv.path.parent / (venv.path.name + ".lock")):
+        if stamp.is_file() and stamp.read_text().strip() == digest:
+            return venv
+        _run([str(venv.python), "-m", "pip", "install", "-q", "--disable-pip-version-check",
+              "-r", str(requirements)], timeout, env=clean_env(),
+             what=f"pip install -r {requirements.name}")
+        stamp.write_text(digest + "\n")
+    return venv
+
+
 def fix_wheel_cmake(venv: RosVenv) -> int:
     """Point the wheels' exported CMake files at this venv's Python and numpy headers;
     returns how many files changed (idempotent)."""
@@ -175,6 +193,25 @@ def ros_env(venv: RosVenv, domain_id: int, log_dir: Path | None = None) -> dict[
     if log_dir is not None:
         env["ROS_LOG_DIR"] = str(log_dir)
     return env
+
+
+def with_rssmc(env: Mapping[str, str], overlay: Path) -> dict[str, str]:
+    """``env`` in which the nodes can import rssmc, as the standard library's devices need
+    (docs/ros2.md, "External operations and devices"): this rssmc and its own lark (>= 1.2; the
+    ROS wheels bring lark-parser 0.12 under the same module name) first on PYTHONPATH, as a pip
+    install of rssmc into the ROS venv would have them; ``overlay`` is a folder for the link
+    to lark."""
+    import lark
+
+    overlay.mkdir(parents=True, exist_ok=True)
+    link = overlay / "lark"
+    if not link.exists():
+        link.symlink_to(Path(lark.__file__).resolve().parent)
+    root = Path(__file__).resolve().parents[2]          # the folder holding rssm_dsl
+    out = dict(env)
+    out["PYTHONPATH"] = os.pathsep.join(
+        p for p in (str(overlay), str(root), env.get("PYTHONPATH", "")) if p)
+    return out
 
 
 def colcon_build(workspace: Path, env: Mapping[str, str], timeout: float = 600.0) -> str:

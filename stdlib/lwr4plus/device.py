@@ -50,6 +50,10 @@ class MujocoLwr4Device(DeviceBase):
     step starts from without computing it again.
     """
 
+    # step(dt) integrates dt of simulated physics: on ROS 2 with use_sim_time this device's
+    # node is the clock of the system (rssm_dsl/ros2/runtime/simclock.py)
+    simulation = True
+
     def __init__(self, spec: DeviceSpec) -> None:
         super().__init__(spec)
         self.arm = MujocoLwr4()

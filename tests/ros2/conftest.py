@@ -108,21 +108,8 @@ def node_env(built: Built, domain: int, tmp: Path) -> dict[str, str]:
 
 
 def with_rssmc(env: dict[str, str], tmp: Path) -> dict[str, str]:
-    """``env`` in which the nodes can import rssmc, as the standard library's devices need
-    (docs/ros2.md, "External operations and devices"): the repository and rssmc's own lark
-    (>= 1.2; the ROS wheels bring lark-parser 0.12 under the same module name) first on
-    PYTHONPATH, as a pip install of rssmc into the ROS venv would have them."""
-    import lark
-
-    overlay = tmp / "rssmc-path"
-    overlay.mkdir(exist_ok=True)
-    link = overlay / "lark"
-    if not link.exists():
-        link.symlink_to(Path(lark.__file__).resolve().parent)
-    out = dict(env)
-    out["PYTHONPATH"] = os.pathsep.join(
-        p for p in (str(overlay), str(ROOT), env.get("PYTHONPATH", "")) if p)
-    return out
+    """``env`` in which the nodes can import rssmc (toolchain.with_rssmc)."""
+    return toolchain.with_rssmc(env, tmp / "rssmc-path")
 
 
 class Processes:

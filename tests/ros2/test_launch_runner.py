@@ -147,8 +147,9 @@ def test_system_launch_file_and_its_domain_argument(tmp_path: Path,
                                                     monkeypatch: pytest.MonkeyPatch,
                                                     capsys: pytest.CaptureFixture[str]) -> None:
     """The bringup package's system.launch.py: every agent's nodes in their namespaces with
-    config/system.yaml, and ROS_DOMAIN_ID set from the launch argument domain_id (default:
-    the environment's, else 0)."""
+    config/system.yaml, ROS_DOMAIN_ID set from the launch argument domain_id (default: the
+    environment's, else 0), and use_sim_time from the launch argument (default false), given
+    to every node as `-p use_sim_time:=...`."""
     monkeypatch.chdir(ROOT)
     ws = generate(compile_file(Path("tests/ros2/specs/relay.rssm")))
     assert not isinstance(ws, list)
@@ -160,10 +161,15 @@ def test_system_launch_file_and_its_domain_argument(tmp_path: Path,
     monkeypatch.setenv("ROS_DOMAIN_ID", "5")
     params = str(prefix / "share" / "relay_bringup" / "config" / "system.yaml")
     planned = lr.plan([launch], {"domain_id": "9"})
+    wall = {"use_sim_time": "false"}
     assert [(n.package, n.fqn, n.parameters, env["ROS_DOMAIN_ID"]) for n, env in planned] == [
-        ("relay_src", "/src/c", [params], "9"),
-        ("relay_dst", "/dst/c", [params], "9"),
-        ("relay_dst", "/dst/e_arm", [params], "9")]
+        ("relay_src", "/src/c", [params, wall], "9"),
+        ("relay_dst", "/dst/c", [params, wall], "9"),
+        ("relay_dst", "/dst/e_arm", [params, wall], "9")]
+    sim = lr.plan([launch], {"use_sim_time": "true"})
+    commands = [lr.command(n) for n, _ in sim]
+    assert all(c[c.index("--params-file") + 1:] == [params, "-p", "use_sim_time:=true"]
+               for c in commands), commands
     assert {env["ROS_DOMAIN_ID"] for _, env in lr.plan([launch])} == {"5"}
     monkeypatch.delenv("ROS_DOMAIN_ID")
     assert {env["ROS_DOMAIN_ID"] for _, env in lr.plan([launch])} == {"0"}

@@ -8,14 +8,17 @@ A channel joins a producer's output buffer to a consumer's input buffer. On the 
   (``std_msgs/msg/Float64``, ``geometry_msgs/msg/Vector3``, ...), otherwise the generated
   record message or ``<Type>Sample``; any ROS node can subscribe to it;
 * the sample-info topic ``<data topic>/info`` carrying ``SampleInfo`` (``epoch``, ``seq``,
-  ``digest``) for every message the producer publishes on the data topic (resends too);
+  ``digest``, ``stamp``) for every message the producer publishes on the data topic (resends
+  too);
 * when the producer is blocking, the acknowledgement topic ``<data topic>/ack`` carrying
   ``Ack`` (``epoch``, ``seq``) from the consumer back to the producer.
 
 ``epoch`` is a random number drawn by the producer at start, so a restarted producer's
 samples count as new; ``seq`` numbers its samples from 1; ``digest`` is :func:`digest` of
 the data message, which pairs the info with its data message (the two topics are not ordered
-with respect to each other). A sample is *there* for the consumer once both its info and a
+with respect to each other); ``stamp`` is the producer's clock when it first published the
+sample (:attr:`Outbox.clock`: the node's ROS clock, simulated time with ``use_sim_time``).
+A sample is *there* for the consumer once both its info and a
 data message with that digest have arrived; two samples of equal content have equal digests
 and are interchangeable. The consumer counts the samples it never took (``overwritten``: gaps
 in ``seq``).
@@ -43,11 +46,12 @@ import random
 import struct
 import time
 from collections import OrderedDict
-from collections.abc import Iterator
+from collections.abc import Callable, Iterator
 from dataclasses import dataclass
 from typing import Any
 
 import numpy as np
+from builtin_interfaces.msg import Time as TimeMsg  # type: ignore[import-not-found]
 from rclpy.node import Node
 from rclpy.qos import DurabilityPolicy, HistoryPolicy, QoSProfile, ReliabilityPolicy
 
@@ -155,6 +159,9 @@ class Outbox:
         self.last: tuple[Any, Any] | None = None
         self.sent_at = 0.0
         self.events = 0
+        # the time stamps of samples and headers (ns): the node's clock unless its loop keeps
+        # the time itself (a device that is the clock of a simulation)
+        self.clock: Callable[[], int] = lambda: node.get_clock().now().nanoseconds
 
     def _declare_header_params(self) -> None:
         """``rssm.frame_id.<buffer>`` (the header's frame) and, for JointState,
@@ -176,20 +183,26 @@ class Outbox:
         if msg.epoch == self.epoch and msg.seq > self.acked:
             self.acked = msg.seq
 
-    def matched(self) -> bool:
-        if self.pub.get_subscription_count() < 1 or self.info_pub.get_subscription_count() < 1:
+    def matched(self, observers: int = 0) -> bool:
+        """The consumer (and ``observers`` more subscribers) read the data and info topics,
+        and the consumer's acknowledgements are heard when it sends them."""
+        need = 1 + observers
+        if (self.pub.get_subscription_count() < need
+                or self.info_pub.get_subscription_count() < need):
             return False
         return self.ack_sub is None or self.ack_sub.get_publisher_count() >= 1
 
     def publish(self, value: Any) -> int:
         self.seq += 1
         msg = self.to_msg(value)
+        now = self.clock()
+        stamp = TimeMsg(sec=now // 1_000_000_000, nanosec=now % 1_000_000_000)
         if self.stamped:
-            msg.header.stamp = self.node.get_clock().now().to_msg()
+            msg.header.stamp = stamp
             msg.header.frame_id = self.frame_id
             if self.joint_names:
                 msg.name = self.joint_names
-        info = self.spec.info(epoch=self.epoch, seq=self.seq, digest=digest(msg))
+        info = self.spec.info(epoch=self.epoch, seq=self.seq, digest=digest(msg), stamp=stamp)
         self.last = (msg, info)
         self._put()
         return self.seq
@@ -285,7 +298,8 @@ class Inbox:
     def _is_new(self, epoch: int, seq: int) -> bool:
         return bool(epoch != self.taken_epoch or seq > self.taken_seq)
 
-    def matched(self) -> bool:
+    def matched(self, observers: int = 0) -> bool:
+        """The producer's data and info topics are heard (``observers``: see Outbox)."""
         if self.sub.get_publisher_count() < 1 or self.info_sub.get_publisher_count() < 1:
             return False
         return self.ack_pub is None or self.ack_pub.get_subscription_count() >= 1

@@ -8,6 +8,12 @@ the standard library's devices work unchanged.
 
 A device type without a binding gets no node: its vendor's driver is expected to speak the
 same topics (docs/ros2.md).
+
+Time: ``step(dt)`` gets the time that passed on the node's clock since the previous step
+(monotonic, or simulated with ``use_sim_time``), so a device paces its process against that
+clock. With ``use_sim_time``, a class that simulates its process (``simulation = True``) makes
+its node the system's clock instead (runtime/simclock.py): each step is exactly one period of
+simulated time, published on ``/clock``.
 """
 
 from __future__ import annotations
@@ -15,7 +21,6 @@ from __future__ import annotations
 import contextlib
 import importlib
 import sys
-import time
 from collections.abc import Callable, Iterator, Mapping
 from dataclasses import dataclass, field
 from pathlib import Path
@@ -30,7 +35,8 @@ from rssm_core.values import Desc, ValueTypeError, converter, type_text
 from .bindings import load
 from .channels import ChannelSpec
 from .loop import Loop
-from .params import ParamSpec, SetupError, read_params, runtime_params
+from .params import ParamSpec, SetupError, declare, read_params, runtime_params
+from .simclock import SimClock, is_simulation
 
 EXIT_OK, EXIT_FAILED, EXIT_SETUP = 0, 1, 2
 
@@ -156,18 +162,38 @@ class DeviceRunner(Loop):
             n: converter(d) for n, d in spec.outputs}
         self.steps = 0
         self.last_step: float | None = None
+        self.sim: SimClock | None = None
+
+    def keep_time(self, real_time_factor: float) -> None:
+        """Be the clock of the simulated system (see runtime/simclock.py)."""
+        if self.timer is not None:
+            self.node.destroy_timer(self.timer)
+            self.timer = None
+        sim = self.sim = SimClock(self.node, self.period, real_time_factor)
+        for box in self.outboxes.values():
+            box.clock = sim.now_ns
+        self.log.info(f"{self.spec.id} is the clock of the simulation (/clock), "
+                      f"{real_time_factor:g} simulated s per wall-clock s")
 
     def run(self) -> int:
         self.wait_for_peers()
         ins = tuple(("buf", c.buffer) for c in self.spec.channels_in)
         outs = tuple(("buf", c.buffer) for c in self.spec.channels_out)
+        sim = self.sim
+        if sim is not None:
+            sim.publish()                  # time 0: the other nodes' timers start from it
         while True:
-            self.wait_tick()
+            if sim is None:
+                self.wait_tick()
+            else:
+                sim.wait(self.spin)
             if ins:
                 self.drive(self.arranged(("seq", ins), self._receive_one))
             self._step()
             if outs:
                 self.drive(self.arranged(("seq", outs), self._send_one))
+            if sim is not None:
+                sim.publish()
 
     def _receive_one(self, buffer: str) -> Iterator[None]:
         taken, value = yield from self.take(buffer)
@@ -179,9 +205,13 @@ class DeviceRunner(Loop):
         yield from self.outboxes[buffer].send(self.values[buffer])
 
     def _step(self) -> None:
-        now = time.monotonic()
-        dt = (self.period if self.last_step is None else now - self.last_step)
-        self.last_step = now
+        if self.sim is not None:
+            dt = self.period
+            self.sim.advance()
+        else:
+            now = self.now()
+            dt = (self.period if self.last_step is None else now - self.last_step)
+            self.last_step = now
         self.steps += 1
         self.impl.step(dt)
         measured = self.impl.measure()
@@ -221,6 +251,9 @@ def run_device(spec: DeviceNodeSpec, args: list[str] | None = None) -> int:
                              f"{type(e).__name__}: {e}") from e
         runner = DeviceRunner(node, executor, spec, impl, rt.rate_hz, rt.resend_period,
                               initial)
+        factor = declare(node, "rssm.real_time_factor", 1.0)
+        if runner.sim_time and is_simulation(impl):
+            runner.keep_time(factor if isinstance(factor, int | float) else -1.0)
         code = runner.run()
     except SetupError as e:
         log.fatal(f"{spec.id}: {e}")

@@ -1,5 +1,10 @@
 """What subsystem and device nodes share: their channel ends, the pacing timer, and
-spinning the node while an operation waits."""
+spinning the node while an operation waits.
+
+Time: the node's ROS clock paces the iterations (its timer). With the standard parameter
+``use_sim_time`` that clock is ``/clock`` (simulated time, published by the device that
+simulates the system: runtime/simclock.py), and so are the iterations' times, the overruns
+and the stamps; otherwise iterations are timed on the monotonic clock."""
 
 from __future__ import annotations
 
@@ -11,6 +16,7 @@ from rclpy.executors import SingleThreadedExecutor
 from rclpy.node import Node
 
 from .channels import ChannelSpec, Inbox, Outbox
+from .params import SetupError, declare
 
 WAIT_SLICE = 0.05          # seconds spun at a time while an operation waits
 Arrangement = tuple[Any, ...]     # ("buf", NAME) | ("seq", (...)) | ("par", (...))
@@ -28,7 +34,15 @@ class Loop:
         self.overruns = 0
         self.last_start: float | None = None
         self.period = 1.0 / rate_hz if rate_hz > 0 else 0.0
+        self.sim_time = bool(node.get_parameter("use_sim_time").value)
+        self.clock = node.get_clock()
         self.timer = node.create_timer(self.period, self._on_tick) if self.period else None
+
+    def now(self) -> float:
+        """Seconds on the node's time: simulated with use_sim_time, else monotonic."""
+        if self.sim_time:
+            return float(self.clock.now().nanoseconds) * 1e-9
+        return time.monotonic()
 
     def _on_tick(self) -> None:
         self.ticked += 1
@@ -59,11 +73,15 @@ class Loop:
 
     def wait_for_peers(self) -> None:
         """Wait until every channel's topics are matched on the other side, so that no
-        sample is published before its reader exists."""
+        sample is published before its reader exists; and, with parameter ``rssm.observers``
+        N > 0, until every output's topics have N subscribers more (a recorder, rosbag)."""
+        observers = declare(self.node, "rssm.observers", 0)
+        if isinstance(observers, bool) or not isinstance(observers, int) or observers < 0:
+            raise SetupError(f"parameter rssm.observers must be an int >= 0, not {observers!r}")
         ends: list[Inbox | Outbox] = [*self.inboxes.values(), *self.outboxes.values()]
         next_log = time.monotonic() + 5.0
         while True:
-            missing = [box.spec for box in ends if not box.matched()]
+            missing = [box.spec for box in ends if not box.matched(observers)]
             if not missing:
                 return
             if time.monotonic() >= next_log:
@@ -75,11 +93,11 @@ class Loop:
     def wait_tick(self) -> None:
         """Pace the iterations at the node's rate (the first one starts at once); an
         iteration that starts two periods or more after the previous one is an overrun."""
-        now = time.monotonic()
+        now = self.now()
         if self.timer is not None and self.last_start is not None:
             while not self.ticked:
                 self.spin(WAIT_SLICE)
-            now = time.monotonic()
+            now = self.now()
             if now - self.last_start >= 2 * self.period:
                 self.overruns += 1
         self.ticked = 0

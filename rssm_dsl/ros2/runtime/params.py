@@ -48,18 +48,18 @@ class RuntimeParams:
     trace_file: str
 
 
-def _declare(node: Node, name: str, default: Any) -> Any:
+def declare(node: Node, name: str, default: Any) -> Any:
     descriptor = ParameterDescriptor(dynamic_typing=True)
     value = node.declare_parameter(name, default, descriptor).value
     return list(value) if isinstance(value, array.array) else value
 
 
 def runtime_params(node: Node, frequency: float | None) -> RuntimeParams:
-    rate = _declare(node, "rssm.rate_hz", float(frequency or 0.0))
-    diag = _declare(node, "rssm.diagnostics_period", 0.1)
-    resend = _declare(node, "rssm.resend_period", 1.0)
-    linger = _declare(node, "rssm.linger", 1.0)
-    trace = _declare(node, "rssm.trace_file", "")
+    rate = declare(node, "rssm.rate_hz", float(frequency or 0.0))
+    diag = declare(node, "rssm.diagnostics_period", 0.1)
+    resend = declare(node, "rssm.resend_period", 1.0)
+    linger = declare(node, "rssm.linger", 1.0)
+    trace = declare(node, "rssm.trace_file", "")
     for name, v in (("rssm.rate_hz", rate), ("rssm.diagnostics_period", diag),
                     ("rssm.resend_period", resend), ("rssm.linger", linger)):
         if isinstance(v, bool) or not isinstance(v, int | float) or v < 0:
@@ -101,7 +101,7 @@ def read_params(node: Node, params: tuple[ParamSpec, ...]) -> dict[str, Any]:
     for p in params:
         value = p.default
         for ros, path, default in leaves(p.name, p.desc, p.default):
-            value = _replace(value, path, _declare(node, ros, default))
+            value = _replace(value, path, declare(node, ros, default))
         try:
             values[p.name] = converter(p.desc)(value)
         except ValueTypeError as e:

@@ -142,7 +142,7 @@ class Runner(Loop):
         self.diag = node.create_publisher(spec.status, "~/rssm/diagnostics", DIAGNOSTICS_QOS)
         self.last_diag = 0.0
         self.trace = Trace(trace_path(rt.trace_file, spec.id))
-        self.started = time.monotonic()
+        self.started = self.now()
 
     # ------------------------------------------------------------------ the pattern
     def begin(self) -> int:
@@ -259,7 +259,7 @@ class Runner(Loop):
                 "event": "iteration", "i": self.i, "behaviour": beh.name,
                 "new": self.new.values(),
                 "cases": self.cases, "sent": self.sent, "received": self.received,
-                "conditions": self.conds, "t": round(time.monotonic() - self.started, 6)})
+                "conditions": self.conds, "t": round(self.now() - self.started, 6)})
         now = time.monotonic()
         if now - self.last_diag >= self.rt.diagnostics_period:
             self.publish("iteration")

@@ -3,8 +3,9 @@
 each agent in its namespace, with the parameters of config/system.yaml of this package.
 
 Launch argument `domain_id` (default: $ROS_DOMAIN_ID, else 0) is the ROS_DOMAIN_ID of every
-node. `ros2 launch relay_bringup system.launch.py domain_id:=7` on a ROS 2
-installation; without the launch system (ROS 2 from PyPI wheels),
+node; `use_sim_time` (default false) puts every node on /clock, which the device node that
+simulates the system publishes (paced at its parameter rssm.real_time_factor).
+`ros2 launch relay_bringup system.launch.py domain_id:=7` on a ROS 2 installation; without the launch system (ROS 2 from PyPI wheels),
 `python -m rssm_dsl.ros2.launch_runner <this file> domain_id:=7`.
 """
 
@@ -19,14 +20,17 @@ from launch_ros.actions import Node
 
 def generate_launch_description():
     params = os.path.join(get_package_share_directory('relay_bringup'), "config", "system.yaml")
+    sim_time = {"use_sim_time": LaunchConfiguration("use_sim_time")}
     return LaunchDescription([
         DeclareLaunchArgument("domain_id", default_value=EnvironmentVariable("ROS_DOMAIN_ID", default_value="0"),
                               description="ROS_DOMAIN_ID of every node of the system"),
         SetEnvironmentVariable("ROS_DOMAIN_ID", LaunchConfiguration("domain_id")),
+        DeclareLaunchArgument("use_sim_time", default_value="false",
+                              description="every node on simulated time (/clock)"),
         # agent a1, namespace /a1
         Node(package='relay_a1', executable='c', name='c',
-             namespace='a1', parameters=[params], output="screen"),  # subsystem a1.c
+             namespace='a1', parameters=[params, sim_time], output="screen"),  # subsystem a1.c
         # agent a2, namespace /a2
         Node(package='relay_a2', executable='c', name='c',
-             namespace='a2', parameters=[params], output="screen"),  # subsystem a2.c
+             namespace='a2', parameters=[params, sim_time], output="screen"),  # subsystem a2.c
     ])

@@ -3,8 +3,9 @@
 each agent in its namespace, with the parameters of config/system.yaml of this package.
 
 Launch argument `domain_id` (default: $ROS_DOMAIN_ID, else 0) is the ROS_DOMAIN_ID of every
-node. `ros2 launch mode_nn_bringup system.launch.py domain_id:=7` on a ROS 2
-installation; without the launch system (ROS 2 from PyPI wheels),
+node; `use_sim_time` (default false) puts every node on /clock, which the device node that
+simulates the system publishes (paced at its parameter rssm.real_time_factor).
+`ros2 launch mode_nn_bringup system.launch.py domain_id:=7` on a ROS 2 installation; without the launch system (ROS 2 from PyPI wheels),
 `python -m rssm_dsl.ros2.launch_runner <this file> domain_id:=7`.
 """
 
@@ -19,20 +20,23 @@ from launch_ros.actions import Node
 
 def generate_launch_description():
     params = os.path.join(get_package_share_directory('mode_nn_bringup'), "config", "system.yaml")
+    sim_time = {"use_sim_time": LaunchConfiguration("use_sim_time")}
     return LaunchDescription([
         DeclareLaunchArgument("domain_id", default_value=EnvironmentVariable("ROS_DOMAIN_ID", default_value="0"),
                               description="ROS_DOMAIN_ID of every node of the system"),
         SetEnvironmentVariable("ROS_DOMAIN_ID", LaunchConfiguration("domain_id")),
+        DeclareLaunchArgument("use_sim_time", default_value="false",
+                              description="every node on simulated time (/clock)"),
         # agent fast_src, namespace /fast_src
         Node(package='mode_nn_fast_src', executable='c', name='c',
-             namespace='fast_src', parameters=[params], output="screen"),  # subsystem fast_src.c
+             namespace='fast_src', parameters=[params, sim_time], output="screen"),  # subsystem fast_src.c
         # agent slow_dst, namespace /slow_dst
         Node(package='mode_nn_slow_dst', executable='c', name='c',
-             namespace='slow_dst', parameters=[params], output="screen"),  # subsystem slow_dst.c
+             namespace='slow_dst', parameters=[params, sim_time], output="screen"),  # subsystem slow_dst.c
         # agent slow_src, namespace /slow_src
         Node(package='mode_nn_slow_src', executable='c', name='c',
-             namespace='slow_src', parameters=[params], output="screen"),  # subsystem slow_src.c
+             namespace='slow_src', parameters=[params, sim_time], output="screen"),  # subsystem slow_src.c
         # agent fast_dst, namespace /fast_dst
         Node(package='mode_nn_fast_dst', executable='c', name='c',
-             namespace='fast_dst', parameters=[params], output="screen"),  # subsystem fast_dst.c
+             namespace='fast_dst', parameters=[params, sim_time], output="screen"),  # subsystem fast_dst.c
     ])

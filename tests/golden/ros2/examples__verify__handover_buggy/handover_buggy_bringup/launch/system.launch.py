@@ -3,8 +3,9 @@
 each agent in its namespace, with the parameters of config/system.yaml of this package.
 
 Launch argument `domain_id` (default: $ROS_DOMAIN_ID, else 0) is the ROS_DOMAIN_ID of every
-node. `ros2 launch handover_buggy_bringup system.launch.py domain_id:=7` on a ROS 2
-installation; without the launch system (ROS 2 from PyPI wheels),
+node; `use_sim_time` (default false) puts every node on /clock, which the device node that
+simulates the system publishes (paced at its parameter rssm.real_time_factor).
+`ros2 launch handover_buggy_bringup system.launch.py domain_id:=7` on a ROS 2 installation; without the launch system (ROS 2 from PyPI wheels),
 `python -m rssm_dsl.ros2.launch_runner <this file> domain_id:=7`.
 """
 
@@ -19,34 +20,37 @@ from launch_ros.actions import Node
 
 def generate_launch_description():
     params = os.path.join(get_package_share_directory('handover_buggy_bringup'), "config", "system.yaml")
+    sim_time = {"use_sim_time": LaunchConfiguration("use_sim_time")}
     return LaunchDescription([
         DeclareLaunchArgument("domain_id", default_value=EnvironmentVariable("ROS_DOMAIN_ID", default_value="0"),
                               description="ROS_DOMAIN_ID of every node of the system"),
         SetEnvironmentVariable("ROS_DOMAIN_ID", LaunchConfiguration("domain_id")),
+        DeclareLaunchArgument("use_sim_time", default_value="false",
+                              description="every node on simulated time (/clock)"),
         # agent arm, namespace /arm
         Node(package='handover_buggy_arm', executable='c', name='c',
-             namespace='arm', parameters=[params], output="screen"),  # subsystem arm.c
+             namespace='arm', parameters=[params, sim_time], output="screen"),  # subsystem arm.c
         Node(package='handover_buggy_arm', executable='e_motion', name='e_motion',
-             namespace='arm', parameters=[params], output="screen"),  # subsystem arm.e.motion
+             namespace='arm', parameters=[params, sim_time], output="screen"),  # subsystem arm.e.motion
         Node(package='handover_buggy_arm', executable='e_hand', name='e_hand',
-             namespace='arm', parameters=[params], output="screen"),  # subsystem arm.e.hand
+             namespace='arm', parameters=[params, sim_time], output="screen"),  # subsystem arm.e.hand
         Node(package='handover_buggy_arm', executable='r_vision', name='r_vision',
-             namespace='arm', parameters=[params], output="screen"),  # subsystem arm.r.vision
+             namespace='arm', parameters=[params, sim_time], output="screen"),  # subsystem arm.r.vision
         Node(package='handover_buggy_arm', executable='E_manipulator', name='E_manipulator',
-             namespace='arm', parameters=[params], output="screen"),  # device arm.E.manipulator (ArmController)
+             namespace='arm', parameters=[params, sim_time], output="screen"),  # device arm.E.manipulator (ArmController)
         Node(package='handover_buggy_arm', executable='E_gripper', name='E_gripper',
-             namespace='arm', parameters=[params], output="screen"),  # device arm.E.gripper (ParallelGripper)
+             namespace='arm', parameters=[params, sim_time], output="screen"),  # device arm.E.gripper (ParallelGripper)
         Node(package='handover_buggy_arm', executable='R_camera', name='R_camera',
-             namespace='arm', parameters=[params], output="screen"),  # device arm.R.camera (PartCamera)
+             namespace='arm', parameters=[params, sim_time], output="screen"),  # device arm.R.camera (PartCamera)
         # agent base, namespace /base
         Node(package='handover_buggy_base', executable='c', name='c',
-             namespace='base', parameters=[params], output="screen"),  # subsystem base.c
+             namespace='base', parameters=[params, sim_time], output="screen"),  # subsystem base.c
         Node(package='handover_buggy_base', executable='e_drive', name='e_drive',
-             namespace='base', parameters=[params], output="screen"),  # subsystem base.e.drive
+             namespace='base', parameters=[params, sim_time], output="screen"),  # subsystem base.e.drive
         Node(package='handover_buggy_base', executable='e_fixture', name='e_fixture',
-             namespace='base', parameters=[params], output="screen"),  # subsystem base.e.fixture
+             namespace='base', parameters=[params, sim_time], output="screen"),  # subsystem base.e.fixture
         Node(package='handover_buggy_base', executable='E_wheels', name='E_wheels',
-             namespace='base', parameters=[params], output="screen"),  # device base.E.wheels (OmniBase)
+             namespace='base', parameters=[params, sim_time], output="screen"),  # device base.E.wheels (OmniBase)
         Node(package='handover_buggy_base', executable='E_clamp', name='E_clamp',
-             namespace='base', parameters=[params], output="screen"),  # device base.E.clamp (TrayClamp)
+             namespace='base', parameters=[params, sim_time], output="screen"),  # device base.E.clamp (TrayClamp)
     ])

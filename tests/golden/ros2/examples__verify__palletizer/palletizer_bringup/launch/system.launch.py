@@ -3,8 +3,9 @@
 each agent in its namespace, with the parameters of config/system.yaml of this package.
 
 Launch argument `domain_id` (default: $ROS_DOMAIN_ID, else 0) is the ROS_DOMAIN_ID of every
-node. `ros2 launch palletizer_bringup system.launch.py domain_id:=7` on a ROS 2
-installation; without the launch system (ROS 2 from PyPI wheels),
+node; `use_sim_time` (default false) puts every node on /clock, which the device node that
+simulates the system publishes (paced at its parameter rssm.real_time_factor).
+`ros2 launch palletizer_bringup system.launch.py domain_id:=7` on a ROS 2 installation; without the launch system (ROS 2 from PyPI wheels),
 `python -m rssm_dsl.ros2.launch_runner <this file> domain_id:=7`.
 """
 
@@ -19,29 +20,32 @@ from launch_ros.actions import Node
 
 def generate_launch_description():
     params = os.path.join(get_package_share_directory('palletizer_bringup'), "config", "system.yaml")
+    sim_time = {"use_sim_time": LaunchConfiguration("use_sim_time")}
     return LaunchDescription([
         DeclareLaunchArgument("domain_id", default_value=EnvironmentVariable("ROS_DOMAIN_ID", default_value="0"),
                               description="ROS_DOMAIN_ID of every node of the system"),
         SetEnvironmentVariable("ROS_DOMAIN_ID", LaunchConfiguration("domain_id")),
+        DeclareLaunchArgument("use_sim_time", default_value="false",
+                              description="every node on simulated time (/clock)"),
         # agent supervisor, namespace /supervisor
         Node(package='palletizer_supervisor', executable='c', name='c',
-             namespace='supervisor', parameters=[params], output="screen"),  # subsystem supervisor.c
+             namespace='supervisor', parameters=[params, sim_time], output="screen"),  # subsystem supervisor.c
         Node(package='palletizer_supervisor', executable='r_infeed', name='r_infeed',
-             namespace='supervisor', parameters=[params], output="screen"),  # subsystem supervisor.r.infeed
+             namespace='supervisor', parameters=[params, sim_time], output="screen"),  # subsystem supervisor.r.infeed
         Node(package='palletizer_supervisor', executable='R_infeed', name='R_infeed',
-             namespace='supervisor', parameters=[params], output="screen"),  # device supervisor.R.infeed (ConveyorSensors)
+             namespace='supervisor', parameters=[params, sim_time], output="screen"),  # device supervisor.R.infeed (ConveyorSensors)
         # agent picker, namespace /picker
         Node(package='palletizer_picker', executable='c', name='c',
-             namespace='picker', parameters=[params], output="screen"),  # subsystem picker.c
+             namespace='picker', parameters=[params, sim_time], output="screen"),  # subsystem picker.c
         Node(package='palletizer_picker', executable='e_arm', name='e_arm',
-             namespace='picker', parameters=[params], output="screen"),  # subsystem picker.e.arm
+             namespace='picker', parameters=[params, sim_time], output="screen"),  # subsystem picker.e.arm
         Node(package='palletizer_picker', executable='E_robot', name='E_robot',
-             namespace='picker', parameters=[params], output="screen"),  # device picker.E.robot (SixAxisRobot)
+             namespace='picker', parameters=[params, sim_time], output="screen"),  # device picker.E.robot (SixAxisRobot)
         # agent stacker, namespace /stacker
         Node(package='palletizer_stacker', executable='c', name='c',
-             namespace='stacker', parameters=[params], output="screen"),  # subsystem stacker.c
+             namespace='stacker', parameters=[params, sim_time], output="screen"),  # subsystem stacker.c
         Node(package='palletizer_stacker', executable='e_arm', name='e_arm',
-             namespace='stacker', parameters=[params], output="screen"),  # subsystem stacker.e.arm
+             namespace='stacker', parameters=[params, sim_time], output="screen"),  # subsystem stacker.e.arm
         Node(package='palletizer_stacker', executable='E_robot', name='E_robot',
-             namespace='stacker', parameters=[params], output="screen"),  # device stacker.E.robot (SixAxisRobot)
+             namespace='stacker', parameters=[params, sim_time], output="screen"),  # device stacker.E.robot (SixAxisRobot)
     ])

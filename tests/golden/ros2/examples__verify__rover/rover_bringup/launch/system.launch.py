@@ -3,8 +3,9 @@
 each agent in its namespace, with the parameters of config/system.yaml of this package.
 
 Launch argument `domain_id` (default: $ROS_DOMAIN_ID, else 0) is the ROS_DOMAIN_ID of every
-node. `ros2 launch rover_bringup system.launch.py domain_id:=7` on a ROS 2
-installation; without the launch system (ROS 2 from PyPI wheels),
+node; `use_sim_time` (default false) puts every node on /clock, which the device node that
+simulates the system publishes (paced at its parameter rssm.real_time_factor).
+`ros2 launch rover_bringup system.launch.py domain_id:=7` on a ROS 2 installation; without the launch system (ROS 2 from PyPI wheels),
 `python -m rssm_dsl.ros2.launch_runner <this file> domain_id:=7`.
 """
 
@@ -19,25 +20,28 @@ from launch_ros.actions import Node
 
 def generate_launch_description():
     params = os.path.join(get_package_share_directory('rover_bringup'), "config", "system.yaml")
+    sim_time = {"use_sim_time": LaunchConfiguration("use_sim_time")}
     return LaunchDescription([
         DeclareLaunchArgument("domain_id", default_value=EnvironmentVariable("ROS_DOMAIN_ID", default_value="0"),
                               description="ROS_DOMAIN_ID of every node of the system"),
         SetEnvironmentVariable("ROS_DOMAIN_ID", LaunchConfiguration("domain_id")),
+        DeclareLaunchArgument("use_sim_time", default_value="false",
+                              description="every node on simulated time (/clock)"),
         # agent rover, namespace /rover
         Node(package='rover_rover', executable='c', name='c',
-             namespace='rover', parameters=[params], output="screen"),  # subsystem rover.c
+             namespace='rover', parameters=[params, sim_time], output="screen"),  # subsystem rover.c
         Node(package='rover_rover', executable='e_drive', name='e_drive',
-             namespace='rover', parameters=[params], output="screen"),  # subsystem rover.e.drive
+             namespace='rover', parameters=[params, sim_time], output="screen"),  # subsystem rover.e.drive
         Node(package='rover_rover', executable='e_mast', name='e_mast',
-             namespace='rover', parameters=[params], output="screen"),  # subsystem rover.e.mast
+             namespace='rover', parameters=[params, sim_time], output="screen"),  # subsystem rover.e.mast
         Node(package='rover_rover', executable='r_sensing', name='r_sensing',
-             namespace='rover', parameters=[params], output="screen"),  # subsystem rover.r.sensing
+             namespace='rover', parameters=[params, sim_time], output="screen"),  # subsystem rover.r.sensing
         Node(package='rover_rover', executable='E_wheels', name='E_wheels',
-             namespace='rover', parameters=[params], output="screen"),  # device rover.E.wheels (Wheels)
+             namespace='rover', parameters=[params, sim_time], output="screen"),  # device rover.E.wheels (Wheels)
         Node(package='rover_rover', executable='E_mast', name='E_mast',
-             namespace='rover', parameters=[params], output="screen"),  # device rover.E.mast (MastJoints)
+             namespace='rover', parameters=[params, sim_time], output="screen"),  # device rover.E.mast (MastJoints)
         Node(package='rover_rover', executable='R_spectrometer', name='R_spectrometer',
-             namespace='rover', parameters=[params], output="screen"),  # device rover.R.spectrometer (Spectrometer)
+             namespace='rover', parameters=[params, sim_time], output="screen"),  # device rover.R.spectrometer (Spectrometer)
         Node(package='rover_rover', executable='R_imu', name='R_imu',
-             namespace='rover', parameters=[params], output="screen"),  # device rover.R.imu (Inclinometer)
+             namespace='rover', parameters=[params, sim_time], output="screen"),  # device rover.R.imu (Inclinometer)
     ])

@@ -3,8 +3,9 @@
 each agent in its namespace, with the parameters of config/system.yaml of this package.
 
 Launch argument `domain_id` (default: $ROS_DOMAIN_ID, else 0) is the ROS_DOMAIN_ID of every
-node. `ros2 launch tricky_bringup system.launch.py domain_id:=7` on a ROS 2
-installation; without the launch system (ROS 2 from PyPI wheels),
+node; `use_sim_time` (default false) puts every node on /clock, which the device node that
+simulates the system publishes (paced at its parameter rssm.real_time_factor).
+`ros2 launch tricky_bringup system.launch.py domain_id:=7` on a ROS 2 installation; without the launch system (ROS 2 from PyPI wheels),
 `python -m rssm_dsl.ros2.launch_runner <this file> domain_id:=7`.
 """
 
@@ -19,13 +20,16 @@ from launch_ros.actions import Node
 
 def generate_launch_description():
     params = os.path.join(get_package_share_directory('tricky_bringup'), "config", "system.yaml")
+    sim_time = {"use_sim_time": LaunchConfiguration("use_sim_time")}
     return LaunchDescription([
         DeclareLaunchArgument("domain_id", default_value=EnvironmentVariable("ROS_DOMAIN_ID", default_value="0"),
                               description="ROS_DOMAIN_ID of every node of the system"),
         SetEnvironmentVariable("ROS_DOMAIN_ID", LaunchConfiguration("domain_id")),
+        DeclareLaunchArgument("use_sim_time", default_value="false",
+                              description="every node on simulated time (/clock)"),
         # agent a, namespace /a
         Node(package='tricky_a', executable='c', name='c',
-             namespace='a', parameters=[params], output="screen"),  # subsystem a.c
+             namespace='a', parameters=[params, sim_time], output="screen"),  # subsystem a.c
         Node(package='tricky_a', executable='e_arm', name='e_arm',
-             namespace='a', parameters=[params], output="screen"),  # subsystem a.e.arm
+             namespace='a', parameters=[params, sim_time], output="screen"),  # subsystem a.e.arm
     ])

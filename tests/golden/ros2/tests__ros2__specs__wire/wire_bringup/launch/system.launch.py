@@ -3,8 +3,9 @@
 each agent in its namespace, with the parameters of config/system.yaml of this package.
 
 Launch argument `domain_id` (default: $ROS_DOMAIN_ID, else 0) is the ROS_DOMAIN_ID of every
-node. `ros2 launch wire_bringup system.launch.py domain_id:=7` on a ROS 2
-installation; without the launch system (ROS 2 from PyPI wheels),
+node; `use_sim_time` (default false) puts every node on /clock, which the device node that
+simulates the system publishes (paced at its parameter rssm.real_time_factor).
+`ros2 launch wire_bringup system.launch.py domain_id:=7` on a ROS 2 installation; without the launch system (ROS 2 from PyPI wheels),
 `python -m rssm_dsl.ros2.launch_runner <this file> domain_id:=7`.
 """
 
@@ -19,35 +20,38 @@ from launch_ros.actions import Node
 
 def generate_launch_description():
     params = os.path.join(get_package_share_directory('wire_bringup'), "config", "system.yaml")
+    sim_time = {"use_sim_time": LaunchConfiguration("use_sim_time")}
     return LaunchDescription([
         DeclareLaunchArgument("domain_id", default_value=EnvironmentVariable("ROS_DOMAIN_ID", default_value="0"),
                               description="ROS_DOMAIN_ID of every node of the system"),
         SetEnvironmentVariable("ROS_DOMAIN_ID", LaunchConfiguration("domain_id")),
+        DeclareLaunchArgument("use_sim_time", default_value="false",
+                              description="every node on simulated time (/clock)"),
         # agent bb, namespace /bb
         Node(package='wire_bb', executable='c', name='c',
-             namespace='bb', parameters=[params], output="screen"),  # subsystem bb.c
+             namespace='bb', parameters=[params, sim_time], output="screen"),  # subsystem bb.c
         Node(package='wire_bb', executable='e_sink', name='e_sink',
-             namespace='bb', parameters=[params], output="screen"),  # subsystem bb.e.sink
+             namespace='bb', parameters=[params, sim_time], output="screen"),  # subsystem bb.e.sink
         # agent bn, namespace /bn
         Node(package='wire_bn', executable='c', name='c',
-             namespace='bn', parameters=[params], output="screen"),  # subsystem bn.c
+             namespace='bn', parameters=[params, sim_time], output="screen"),  # subsystem bn.c
         Node(package='wire_bn', executable='e_sink', name='e_sink',
-             namespace='bn', parameters=[params], output="screen"),  # subsystem bn.e.sink
+             namespace='bn', parameters=[params, sim_time], output="screen"),  # subsystem bn.e.sink
         # agent nb, namespace /nb
         Node(package='wire_nb', executable='c', name='c',
-             namespace='nb', parameters=[params], output="screen"),  # subsystem nb.c
+             namespace='nb', parameters=[params, sim_time], output="screen"),  # subsystem nb.c
         Node(package='wire_nb', executable='e_sink', name='e_sink',
-             namespace='nb', parameters=[params], output="screen"),  # subsystem nb.e.sink
+             namespace='nb', parameters=[params, sim_time], output="screen"),  # subsystem nb.e.sink
         # agent nn, namespace /nn
         Node(package='wire_nn', executable='c', name='c',
-             namespace='nn', parameters=[params], output="screen"),  # subsystem nn.c
+             namespace='nn', parameters=[params, sim_time], output="screen"),  # subsystem nn.c
         Node(package='wire_nn', executable='e_sink', name='e_sink',
-             namespace='nn', parameters=[params], output="screen"),  # subsystem nn.e.sink
+             namespace='nn', parameters=[params, sim_time], output="screen"),  # subsystem nn.e.sink
         # agent gadget, namespace /gadget
         Node(package='wire_gadget', executable='c', name='c',
-             namespace='gadget', parameters=[params], output="screen"),  # subsystem gadget.c
+             namespace='gadget', parameters=[params, sim_time], output="screen"),  # subsystem gadget.c
         Node(package='wire_gadget', executable='r_thermo', name='r_thermo',
-             namespace='gadget', parameters=[params], output="screen"),  # subsystem gadget.r.thermo
+             namespace='gadget', parameters=[params, sim_time], output="screen"),  # subsystem gadget.r.thermo
         Node(package='wire_gadget', executable='R_thermo', name='R_thermo',
-             namespace='gadget', parameters=[params], output="screen"),  # device gadget.R.thermo (Thermo)
+             namespace='gadget', parameters=[params, sim_time], output="screen"),  # device gadget.R.thermo (Thermo)
     ])
