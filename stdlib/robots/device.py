@@ -20,7 +20,14 @@ Inputs: ``torque`` (``float[n]``, N·m, one per joint in the table's order; clip
 torque limits). Output ``state``, a record with ``q``, ``dq`` (``float[n]``: joint positions,
 rad, and velocities, rad/s, from MuJoCo) and ``position``, ``velocity`` (``float[3]``: the
 end-effector frame's position, m, and linear velocity, m/s, world frame, from MuJoCo), and
-optionally ``time`` (``float``, s, MuJoCo's clock).
+optionally ``time`` (``float``, s, MuJoCo's clock). Optional outputs, measured when the device
+type declares them (robots.rssm's ``Arm7Sensing``; sensors.py):
+
+- ``ee_orientation`` (``float[4]``): the end-effector frame's orientation, a unit quaternion
+  ``(w, x, y, z)`` in the world frame;
+- ``contact_force`` (``float[3]``, N, world frame): the sum of the contact forces the rest of
+  the world exerts on the arm's links during the last physics step (zero without contacts:
+  an MJCF's collision geoms, or a URDF's with ``collisions = true`` in robots.toml).
 
 Each period the physics advances in the model's own steps (``timestep`` of the table, 1 ms by
 default; the remainder carried to the next period; one step per period for a device faster
@@ -47,6 +54,7 @@ from rssm_dsl.interp.device import DeviceBase, DeviceConfigError, DeviceSpec
 from .dynamics import register
 from .model import RobotModelError, build_mujoco, ee_site_name, find_robot
 from .model import Vector as Vector
+from .sensors import CONTACT, ORIENTATION, arm_bodies, contact_force, orientation
 
 _SITE = mujoco.mjtObj.mjOBJ_SITE
 
@@ -125,7 +133,12 @@ class MujocoArmDevice(DeviceBase):
         self._slices = (slice(0, n), slice(n, 2 * n), slice(2 * n, 2 * n + 3),
                         slice(2 * n + 3, 2 * n + 6))
         self._carry = 0.0
+        self._arm = arm_bodies(model)
+        self.contact_force: Vector = np.zeros(3)
+        if self._with_contact:
+            self.contact_force = contact_force(model, data, self._arm)
         self.state: dict[str, Any] = self._read()
+        self._extra: dict[str, Any] = self._read_extra()
 
     def default_q0(self) -> Vector:
         """The start pose without a ``q0`` parameter or option: the table's."""
@@ -144,6 +157,13 @@ class MujocoArmDevice(DeviceBase):
                 f"{spec.device_type} needs an output `state`, a record with q, dq: float[{n}] "
                 f"and position, velocity: float[3] (robots.rssm's ArmState7 for 7 joints)")
         self._with_time = _field(state, "time") is not None
+        for name, size in ((ORIENTATION, 4), (CONTACT, 3)):
+            if name in spec.outputs and _size(spec.outputs[name]) != size:
+                raise DeviceConfigError(f"{spec.device_type}: output `{name}` must be "
+                                        f"float[{size}], not {spec.outputs[name]}")
+        self._with_orientation = ORIENTATION in spec.outputs
+        self._with_contact = CONTACT in spec.outputs
+        self._extra_wanted = self._with_orientation or self._with_contact
 
     def _read(self) -> dict[str, Any]:
         mujoco.mj_objectVelocity(self.model, self.data, _SITE, self.site_id, self._vel6, 0)
@@ -155,6 +175,19 @@ class MujocoArmDevice(DeviceBase):
         if self._with_time:
             state["time"] = float(self.data.time)
         return state
+
+    def _read_extra(self) -> dict[str, Any]:
+        """The optional outputs the device type declares."""
+        extra: dict[str, Any] = {}
+        if self._with_orientation:
+            quat = orientation(self.model, self.data, self.site_id)
+            quat.setflags(write=False)
+            extra[ORIENTATION] = quat
+        if self._with_contact:
+            force = self.contact_force.copy()
+            force.setflags(write=False)
+            extra[CONTACT] = force
+        return extra
 
     def receive(self, buffer: str, value: Any) -> None:
         if buffer == "torque":
@@ -171,11 +204,19 @@ class MujocoArmDevice(DeviceBase):
             np.maximum(self.tau, self.torque_low, out=self._clipped)
             np.minimum(self._clipped, self.torque_high, out=self._ctrl)
             model, data = self.model, self.data
-            for _ in range(k):       # mj_step2 + mj_step1 = mj_step, state read consistent
+            for _ in range(k - 1):   # mj_step2 + mj_step1 = mj_step, state read consistent
                 mujoco.mj_step2(model, data)
                 mujoco.mj_step1(model, data)
+            mujoco.mj_step2(model, data)
+            if self._with_contact:   # the contacts of the step and their solved forces
+                self.contact_force = contact_force(model, data, self._arm)
+            mujoco.mj_step1(model, data)
             self.state = self._read()
+            if self._extra_wanted:
+                self._extra = self._read_extra()
         self.time += dt
 
     def measure(self) -> Mapping[str, Any]:
+        if self._extra:
+            return {"state": self.state, **self._extra}
         return {"state": self.state}

@@ -12,6 +12,7 @@ an enum parameter ``robot`` of the device type, e.g. ``Robot.panda``):
     q0 = [0.0, -0.785, ...]                                  # start pose (rad), optional
     armature = 0.1                                           # kg m^2, scalar or per joint
     torque_limits = [87.0, ...]                              # N m, optional
+    collisions = true                                        # URDF: keep collision geoms
 
 The tables searched, first match wins: ``robots.toml`` in the specification's folder, then the
 standard library's (this folder). A model path is resolved relative to the folder of the table
@@ -21,8 +22,10 @@ standard library.
 
 The same description gives both models: MuJoCo (:func:`build_mujoco`; the listed joints keep
 their degrees of freedom and get one torque motor each, every other joint is removed, so the
-links it moved are welded to their parent; URDF visuals and collision meshes are dropped: the
-arm has no contacts) and Pinocchio (:func:`build_pinocchio`; the other joints locked at 0).
+links it moved are welded to their parent; URDF visuals are dropped, and so are its collision
+elements unless ``collisions = true``: then its meshes are read, ``package://NAME/...`` from
+a folder NAME above the URDF or from example-robot-data's share folder) and Pinocchio
+(:func:`build_pinocchio`; the other joints locked at 0).
 """
 
 from __future__ import annotations
@@ -63,6 +66,7 @@ class RobotDescription:
     torque_limits: tuple[float, ...]  # inf: unlimited
     timestep: float
     table: Path                       # the TOML file that describes it
+    collisions: bool = False          # URDF: keep its collision elements (contacts)
 
     @property
     def is_urdf(self) -> bool:
@@ -129,7 +133,7 @@ def describe(name: str, entry: dict[str, Any], table: Path) -> RobotDescription:
     if not isinstance(entry, dict):
         raise RobotModelError(f"{where}: expected a table")
     unknown = set(entry) - {"model", "joints", "ee", "q0", "armature", "torque_limits",
-                            "timestep"}
+                            "timestep", "collisions"}
     if unknown:
         raise RobotModelError(f"{where}: unknown keys {', '.join(sorted(unknown))}")
     model, joints, ee = entry.get("model"), entry.get("joints"), entry.get("ee")
@@ -143,6 +147,9 @@ def describe(name: str, entry: dict[str, Any], table: Path) -> RobotDescription:
     if not isinstance(ee, str):
         raise RobotModelError(f"{where}: ee must name a site, body or link")
     n = len(joints)
+    collisions = entry.get("collisions", False)
+    if not isinstance(collisions, bool):
+        raise RobotModelError(f"{where}: collisions must be true or false")
     timestep = entry.get("timestep", 0.001)
     if not isinstance(timestep, float | int) or not 0 < timestep <= 0.1:
         raise RobotModelError(f"{where}: timestep must be in (0, 0.1] s")
@@ -151,7 +158,7 @@ def describe(name: str, entry: dict[str, Any], table: Path) -> RobotDescription:
         q0=_floats(entry, "q0", n, 0.0, where),
         armature=_floats(entry, "armature", n, 0.0, where),
         torque_limits=_floats(entry, "torque_limits", n, math.inf, where),
-        timestep=float(timestep), table=table)
+        timestep=float(timestep), table=table, collisions=collisions)
 
 
 def find_robot(name: str, spec_dir: Path | None) -> RobotDescription:
@@ -169,22 +176,46 @@ def find_robot(name: str, spec_dir: Path | None) -> RobotDescription:
 
 # --- MuJoCo ---------------------------------------------------------------------------------
 
-def _urdf_for_mujoco(path: Path) -> tuple[str, dict[str, float]]:
-    """The URDF without visuals and collisions (meshes MuJoCo may not read; no contacts), with
-    static links kept as bodies (so any link can be the end effector); and the joints' effort
-    limits."""
+def resolve_mesh(filename: str, urdf: Path) -> Path:
+    """The mesh file a URDF names: ``package://NAME/REST`` in a folder NAME above the URDF or
+    in example-robot-data's share folder, a ``file://`` or plain path relative to the URDF."""
+    if filename.startswith("package://"):
+        package, _, rest = filename.removeprefix("package://").partition("/")
+        candidates = [folder / rest for folder in urdf.parents if folder.name == package]
+        if package == "example-robot-data":
+            candidates.append(robot_data_dir().parent / rest)
+        for candidate in candidates:
+            if candidate.is_file():
+                return candidate
+        raise RobotModelError(f"{urdf}: mesh {filename!r} not found (no folder {package} "
+                              "above the URDF holds it)")
+    path = Path(filename.removeprefix("file://"))
+    path = path if path.is_absolute() else urdf.parent / path
+    if not path.is_file():
+        raise RobotModelError(f"{urdf}: mesh {filename!r} not found (looked for {path})")
+    return path
+
+
+def _urdf_for_mujoco(path: Path, collisions: bool = False) -> tuple[str, dict[str, float]]:
+    """The URDF without visuals (and without collisions unless ``collisions``: meshes then
+    named by absolute paths), with static links kept as bodies (so any link can be the end
+    effector); and the joints' effort limits."""
     try:
         root = ET.parse(path).getroot()
     except (OSError, ET.ParseError) as e:
         raise RobotModelError(f"{path}: {e}") from None
     for link in root.iter("link"):
-        for tag in ("visual", "collision"):
+        for tag in ("visual",) if collisions else ("visual", "collision"):
             for element in link.findall(tag):
                 link.remove(element)
+    if collisions:
+        for mesh in root.iter("mesh"):
+            mesh.set("filename", str(resolve_mesh(mesh.get("filename", ""), path)))
     for old in root.findall("mujoco"):
         root.remove(old)
     extension = ET.SubElement(root, "mujoco")
-    ET.SubElement(extension, "compiler", fusestatic="false", discardvisual="true")
+    ET.SubElement(extension, "compiler", fusestatic="false", discardvisual="true",
+                  strippath="false")
     efforts: dict[str, float] = {}
     for joint in root.iter("joint"):
         limit = joint.find("limit")
@@ -202,7 +233,7 @@ def build_mujoco(robot: RobotDescription) -> tuple[Any, Vector, Vector]:
     efforts: dict[str, float] = {}
     try:
         if robot.is_urdf:
-            text, efforts = _urdf_for_mujoco(robot.model)
+            text, efforts = _urdf_for_mujoco(robot.model, robot.collisions)
             spec = mujoco.MjSpec.from_string(text)
         else:
             spec = mujoco.MjSpec.from_file(str(robot.model))

@@ -4,8 +4,11 @@ using them, and whether example-robot-data (the Panda) is installed."""
 from __future__ import annotations
 
 import importlib.metadata
+import re
 from pathlib import Path
+from typing import Any
 
+import numpy as np
 import pytest
 
 from rssm_dsl.interp import RunConfig, build_runtime
@@ -169,3 +172,10 @@ def runtime(path: Path) -> Runtime:
     comp = compile_file(path)
     assert comp.ok, [d.message for d in comp.diagnostics]
     return build_runtime(comp, RunConfig(base_dir=path.parent))
+
+
+def joint_constants(path: Path) -> dict[str, np.ndarray[Any, np.dtype[np.float64]]]:
+    """The `const NAME: JointVec7 = [...]` of a specification, as arrays."""
+    found = re.findall(r"^const (\w+): JointVec7 = \[([^\]]*)\]", path.read_text("utf-8"),
+                       re.MULTILINE)
+    return {name: np.array([float(x) for x in values.split(",")]) for name, values in found}

@@ -28,6 +28,8 @@ def _simulate(spec: Path) -> subprocess.CompletedProcess[str]:
      "long.xml: no site, body or link 'nose'"),
     ('q0 = [-0.2, 0.1]', 'q0 = [-0.2, 0.1, 0.0]', "q0 must be a number or a list of 2 numbers"),
     ('[long]', '[lang]', "robot long: no robot 'long' in "),
+    ('torque_limits = [5.0, 3.0]', 'torque_limits = [5.0, 3.0]\ncollisions = "yes"',
+     "collisions must be true or false"),
 ])
 def test_bad_robot_is_E801(tmp_path: Path, old: str, new: str, message: str) -> None:
     assert old in TABLE
