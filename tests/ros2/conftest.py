@@ -49,6 +49,13 @@ def ros_venv() -> toolchain.RosVenv:
     return toolchain.ensure_venv(VENV, timeout=900)
 
 
+@pytest.fixture(scope="session")
+def ros_physics_venv(ros_venv: toolchain.RosVenv) -> toolchain.RosVenv:
+    """The ROS venv with MuJoCo and Pinocchio (requirements-physics.txt), for the nodes of the
+    MuJoCo-bound devices and their controllers (installed once, about 15 s from pip's cache)."""
+    return toolchain.ensure_extra(ros_venv, timeout=900)
+
+
 _built: dict[str, Built] = {}
 
 

@@ -91,14 +91,18 @@ class Loop:
             self.spin(0.1)
 
     def wait_tick(self) -> None:
-        """Pace the iterations at the node's rate (the first one starts at once); an
-        iteration that starts two periods or more after the previous one is an overrun."""
+        """Pace the iterations at the node's rate (the first one starts at once, and the
+        periods count from it); an iteration that starts two periods or more after the
+        previous one is an overrun."""
         now = self.now()
-        if self.timer is not None and self.last_start is not None:
+        last = self.last_start
+        if self.timer is not None and last is None:
+            self.timer.reset()
+        elif self.timer is not None and last is not None:
             while not self.ticked:
                 self.spin(WAIT_SLICE)
             now = self.now()
-            if now - self.last_start >= 2 * self.period:
+            if now - last >= 2 * self.period:
                 self.overruns += 1
         self.ticked = 0
         self.last_start = now
