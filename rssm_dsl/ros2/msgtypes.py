@@ -45,8 +45,8 @@ INFO_FIELDS = (
     ("uint64", "seq", "the producer's sample number, from 1"),
     ("uint64", "digest", "64 bits of BLAKE2b over the content of the data message it describes"),
     ("builtin_interfaces/Time", "stamp",
-     "the producer's clock when it first published the sample (ROS time: /clock with "
-     "use_sim_time)"),
+     "the tick of the producer's iteration that sent the sample, on its ROS clock (/clock "
+     "with use_sim_time)"),
 )
 STATUS_FIELDS = (
     ("builtin_interfaces/Time", "stamp", ""),

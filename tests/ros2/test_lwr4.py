@@ -11,6 +11,8 @@ test_hosts.py shares. bench/ros2_lwr4.py prints the same figures (and plots them
 
 from __future__ import annotations
 
+import os
+import subprocess
 import time
 from pathlib import Path
 
@@ -54,27 +56,51 @@ def test_lwr4_circle_on_ros2_tracks_as_the_interpreter_does(
     assert ros.ok, f"the control subsystem did not switch {SWITCHES} times:\n{logs}"
 
     rec = ros.recording
-    # the device node is the clock: its state k is stamped k periods of 1 ms, none missing
+    # the device node is the clock: its state k is stamped k periods of 1 ms; a recorder that
+    # fell behind may miss a sample (depth 1, as every channel), hardly ever
     seqs = np.array([r["seq"] for r in rec.states])
-    stamps = np.array([r["t"] for r in rec.states])
-    assert np.array_equal(seqs, np.arange(seqs[0], seqs[0] + len(seqs)))
-    assert np.allclose(stamps, seqs * 1e-3, atol=1e-9)
-    # every set point of c from its first (it waits for the recorder), one per 10 ms of
-    # simulated time: the k-th sent at its tick, or a few ms after it when c's node woke late
-    # (its stamp is the clock when it published)
-    sp = np.array([r["t"] for r in rec.setpoints])
-    assert [r["seq"] for r in rec.setpoints] == list(range(1, len(sp) + 1))
-    late = sp - sp[0] - 0.01 * np.arange(len(sp))
-    assert late.min() > -1e-6 and late.max() < 0.005, late
+    assert np.all(np.diff(seqs) > 0)
+    assert np.allclose([r["t"] for r in rec.states], seqs * 1e-3, atol=1e-9)
+    # c's set points from its first (it waits for the recorder), each stamped with its tick:
+    # 10 ms of simulated time apart
+    sp = np.array([(r["seq"], r["t"]) for r in rec.setpoints])
+    assert sp[0, 0] == 1
+    assert np.allclose(sp[:, 1] - sp[0, 1], 0.01 * (sp[:, 0] - 1), atol=1e-9)
     # the circles took as long as in the interpreter: switches 2 s apart, from c's start
     assert [s.target for s in rec.switches] == [s.target for s in interp.switches]
-    assert np.allclose([s.time - sp[0] for s in rec.switches],
-                       [s.time for s in interp.switches], atol=1e-6)
-    # the same run, sample for sample: one per device step from c's first set point
-    assert abs(ros.metrics.samples - interp.metrics.samples) <= 1
+    assert np.allclose([s.time - sp[0, 1] for s in rec.switches],
+                       [s.time for s in interp.switches], atol=1e-9)
+    # the same run: one sample per device step from c's first set point (a few missed at most)
+    assert abs(ros.metrics.samples - interp.metrics.samples) <= interp.metrics.samples // 100
 
     ratio = ros.metrics.rms_error / interp.metrics.rms_error
     print(f"lwr4_circle: interpreter RMS {interp.metrics.rms_error * 1e3:.3f} mm, ROS 2 RMS "
           f"{ros.metrics.rms_error * 1e3:.3f} mm (ratio {ratio:.3f}); nodes {t_ros:.1f} s "
           f"wall at real-time factor {REAL_TIME_FACTOR}")
     assert 0.9 <= ratio <= 1.1, (ros.metrics, interp.metrics)
+
+
+@pytest.mark.parametrize("missing", ["mujoco", "pinocchio"])
+def test_a_missing_physics_package_is_one_line_naming_what_to_install(
+        missing: str, ros_physics_venv: toolchain.RosVenv, build_dir: Path, domain: int,
+        tmp_path: Path) -> None:
+    """The device node (MuJoCo) and the effector node (Pinocchio externs) of the built
+    workspace, started where the module cannot be imported (a package of that name that
+    raises ModuleNotFoundError, first on PYTHONPATH): exit code 2 and one line."""
+    built = build_spec(SPEC, ros_physics_venv, build_dir)
+    env = with_rssmc(node_env(built, domain, tmp_path), tmp_path)
+    hide = tmp_path / "hide" / missing
+    hide.mkdir(parents=True)
+    (hide / "__init__.py").write_text(
+        f"raise ModuleNotFoundError(\"No module named '{missing}'\", name={missing!r})\n")
+    env["PYTHONPATH"] = f"{hide.parent}{os.pathsep}{env['PYTHONPATH']}"
+    node = "E_lwr" if missing == "mujoco" else "e_lwr"
+    exe = built.root / "install" / "lwr4_circle_a1" / "lib" / "lwr4_circle_a1" / node
+    done = subprocess.run([str(exe)], env=env, capture_output=True, text=True, timeout=60,
+                          check=False)
+    lines = (done.stdout + done.stderr).strip().splitlines()
+    assert done.returncode == 2, lines
+    assert len(lines) == 1, lines
+    assert "[FATAL]" in lines[0] and f"needs '{missing}'" in lines[0], lines
+    assert "pip install -r rssm_dsl/ros2/requirements-physics.txt" in lines[0], lines
+    print(lines[0])

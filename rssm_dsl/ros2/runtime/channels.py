@@ -16,8 +16,9 @@ A channel joins a producer's output buffer to a consumer's input buffer. On the 
 ``epoch`` is a random number drawn by the producer at start, so a restarted producer's
 samples count as new; ``seq`` numbers its samples from 1; ``digest`` is :func:`digest` of
 the data message, which pairs the info with its data message (the two topics are not ordered
-with respect to each other); ``stamp`` is the producer's clock when it first published the
-sample (:attr:`Outbox.clock`: the node's ROS clock, simulated time with ``use_sim_time``).
+with respect to each other); ``stamp`` is the time of the producer's iteration that sent the
+sample (:attr:`Outbox.clock`: its tick on the node's ROS clock, simulated time with
+``use_sim_time``; the instant of the measurement for the device that keeps simulated time).
 A sample is *there* for the consumer once both its info and a
 data message with that digest have arrived; two samples of equal content have equal digests
 and are interchangeable. The consumer counts the samples it never took (``overwritten``: gaps
@@ -98,6 +99,11 @@ class ChannelSpec:
         return self.pairing.text
 
 
+def time_msg(ns: int) -> Any:
+    """A ``builtin_interfaces/Time`` of nanoseconds on a ROS clock."""
+    return TimeMsg(sec=ns // 1_000_000_000, nanosec=ns % 1_000_000_000)
+
+
 def _canonical(value: Any, out: list[bytes]) -> None:
     """The bytes of a message's content, field by field (what :func:`digest` hashes)."""
     if hasattr(value, "get_fields_and_field_types"):
@@ -159,8 +165,8 @@ class Outbox:
         self.last: tuple[Any, Any] | None = None
         self.sent_at = 0.0
         self.events = 0
-        # the time stamps of samples and headers (ns): the node's clock unless its loop keeps
-        # the time itself (a device that is the clock of a simulation)
+        # the time stamps of samples and headers (ns): the node's clock, unless its loop
+        # gives the time of the iteration (loop.py: its tick; simclock.py)
         self.clock: Callable[[], int] = lambda: node.get_clock().now().nanoseconds
 
     def _declare_header_params(self) -> None:
@@ -195,8 +201,7 @@ class Outbox:
     def publish(self, value: Any) -> int:
         self.seq += 1
         msg = self.to_msg(value)
-        now = self.clock()
-        stamp = TimeMsg(sec=now // 1_000_000_000, nanosec=now % 1_000_000_000)
+        stamp = time_msg(self.clock())
         if self.stamped:
             msg.header.stamp = stamp
             msg.header.frame_id = self.frame_id

@@ -37,6 +37,26 @@ class Loop:
         self.sim_time = bool(node.get_parameter("use_sim_time").value)
         self.clock = node.get_clock()
         self.timer = node.create_timer(self.period, self._on_tick) if self.period else None
+        # the current iteration's tick on the node's ROS clock (ns): the stamp of what it sends
+        self.first_ns: int | None = None
+        self.tick_ns = 0
+        for box in self.outboxes.values():
+            box.clock = self.tick
+
+    def tick(self) -> int:
+        return self.tick_ns
+
+    def _mark_tick(self) -> None:
+        """The tick the iteration belongs to: the last one at or before now, the periods
+        counted from the first iteration (as the interpreter's ticks are from time 0); without
+        a rate, when it started."""
+        ns = self.clock.now().nanoseconds
+        if self.first_ns is None or not self.period:
+            self.first_ns = self.first_ns if self.first_ns is not None else ns
+            self.tick_ns = ns
+            return
+        period = round(self.period * 1e9)
+        self.tick_ns = self.first_ns + (ns - self.first_ns) // period * period
 
     def now(self) -> float:
         """Seconds on the node's time: simulated with use_sim_time, else monotonic."""
@@ -106,6 +126,7 @@ class Loop:
                 self.overruns += 1
         self.ticked = 0
         self.last_start = now
+        self._mark_tick()
 
     def take(self, buffer: str) -> Generator[None, None, tuple[bool, Any]]:
         """The receive operation of one buffer per its consumer mode: (taken, value)."""

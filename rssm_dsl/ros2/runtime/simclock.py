@@ -19,11 +19,11 @@ from __future__ import annotations
 import time
 from collections.abc import Callable
 
-from builtin_interfaces.msg import Time as TimeMsg  # type: ignore[import-not-found]
 from rclpy.node import Node
 from rclpy.qos import DurabilityPolicy, HistoryPolicy, QoSProfile, ReliabilityPolicy
 from rosgraph_msgs.msg import Clock  # type: ignore[import-not-found]
 
+from .channels import time_msg
 from .params import SetupError
 
 CLOCK_TOPIC = "/clock"
@@ -76,6 +76,4 @@ class SimClock:
         self.ns += self.period_ns
 
     def publish(self) -> None:
-        ns = self.ns
-        self.pub.publish(Clock(clock=TimeMsg(sec=ns // 1_000_000_000,
-                                             nanosec=ns % 1_000_000_000)))
+        self.pub.publish(Clock(clock=time_msg(self.ns)))

@@ -45,7 +45,7 @@ from rssm_core.iteration import Condition, NewFlags, end_conditions
 from rssm_core.trace import SOURCE_NODE, TraceWriter, start_event
 from rssm_core.values import OperationError
 
-from .channels import ChannelSpec
+from .channels import ChannelSpec, time_msg
 from .loop import WAIT_SLICE, Arrangement, Loop
 from .params import ParamSpec, RuntimeParams, SetupError, read_params, runtime_params
 
@@ -286,7 +286,10 @@ class Runner(Loop):
         msg.overruns = self.overruns
         msg.overwritten = [self.inboxes[n].overwritten for n in self.input_names]
         msg.message = message
-        msg.stamp = self.node.get_clock().now().to_msg()
+        # the tick of the last iteration (a switch happens at the end of one), before the
+        # first one the clock
+        ns = self.tick_ns if self.first_ns is not None else self.clock.now().nanoseconds
+        msg.stamp = time_msg(ns)
         self.diag.publish(msg)
 
     def close(self) -> None:
