@@ -281,7 +281,7 @@ class _Planner:
         if s is None or behaviour is None:
             return
         beh = s.model.behaviour(behaviour)
-        compiled: dict[int, Any] = {}
+        compiled: dict[int, tuple[Any, tuple[str, ...]]] = {}
         written: set[str] = set()
         used: set[str] = set()
         for pf in beh.functions:
@@ -289,7 +289,7 @@ class _Planner:
                 if case.void:
                     continue
                 run, names_ = s.compiler.case(case.body)
-                compiled[id(case)] = run
+                compiled[id(case)] = (run, s.reads(names_))
                 written |= set(names_)
                 used |= _stmt_names(case.body)
         writes = s.reads(written)
@@ -303,13 +303,18 @@ class _Planner:
             runs = [compiled[id(c)] for c in cases]
 
             def run(values: Mapping[str, Any]) -> list[Outcome]:
+                # each partial function reads the state before the transition function, so
+                # one that needs an unknown value (a float, an operation's result) leaves
+                # only its own targets unknown
                 env, stage = s.env(values), dict[str, Any]()
-                try:
-                    for r in runs:
+                unknown: set[str] = set()
+                for r, targets in runs:
+                    try:
                         r(env, stage)
-                except Exception:
-                    return [dict.fromkeys(writes, ANY)]
-                return [{k: _known(stage[n]) if n in stage else values.get(k, ANY)
+                    except Exception:
+                        unknown.update(targets)
+                return [{k: ANY if k in unknown else
+                         _known(stage[n]) if n in stage else values.get(k, ANY)
                          for k in writes for n in [k.rpartition(".")[2]]}]
             return Step(reads, writes, run)
         self.forks[name] = for_combination

@@ -48,6 +48,11 @@ VARIANTS = {
          ("switch q -> q when x", "switch q -> q when x == Order.position_first"),
          ("always cell.c.x == cell.c.m", "always (cell.c.x == Order.position_first) == cell.c.m")),
         Verdict.VERIFIED, Verdict.VIOLATED),
+    # a partial function the verifier cannot compute (it reads a float) leaves only its own
+    # target unknown, not the flag computed beside it
+    "a float computed beside the flag": (
+        (("update y { y := 0.5 }", "update y { y := y * 0.5 + 0.25 }"),),
+        Verdict.VERIFIED, Verdict.VIOLATED),
     "robot switches on a float": (
         (("switch p -> q when x", "switch p -> q when y > 0.3"),
          ("switch q -> q when x", "switch q -> q when y > 0.3")),
