@@ -6,6 +6,7 @@ from __future__ import annotations
 
 import csv
 import json
+import re
 from dataclasses import dataclass
 from pathlib import Path
 from typing import Any
@@ -141,3 +142,41 @@ def test_the_two_grippers_meet_at_the_bar_s_ends() -> None:
     taker_tcp = np.array([1.3 - tcp[0], -tcp[1], tcp[2]])
     assert np.allclose(taker_tcp - giver_tcp, [0.3, 0.0, 0.0], atol=2e-3)
     assert tcp[2] == pytest.approx(0.3, abs=1e-3)
+
+
+def _verify(tmp_path: Path, edits: tuple[tuple[str, str], ...] = ()) -> dict[str, Any]:
+    """`rssmc verify` of the example with its state invariants only (the response properties
+    need the slice's full state space: docs/devices.md quotes that run), after ``edits``."""
+    text = re.sub(r"\n  property \w+: whenever [^\n]*", "", SPEC.read_text(encoding="utf-8"))
+    for old, new in edits:
+        assert old in text
+        text = text.replace(old, new)
+    spec = tmp_path / SPEC.name
+    spec.write_text(text, encoding="utf-8")
+    proc = rssmc("verify", spec, "--format", "json")
+    assert proc.returncode in (0, 1), proc.stderr
+    return dict(json.loads(proc.stdout))
+
+
+def test_the_protocol_s_invariants_hold(tmp_path: Path) -> None:
+    report = _verify(tmp_path)
+    assert report["verdict"] == "verified", report["verdict"]
+    assert {p["name"]: p["holds"] for p in report["user_properties"]} == {
+        "taker_waits_for_the_offer": True, "released_only_when_held": True,
+        "one_arm_enters_at_a_time": True}
+
+
+@pytest.mark.parametrize(("edit", "broken"), [
+    # a taker that goes as soon as it is ready, offered or not
+    (("terminal told when offering", "terminal told when true"),
+     "taker_waits_for_the_offer"),
+    # a giver that lets go as soon as the taker is on its way
+    (("terminal taken when taker == TakerState.holding",
+      "terminal taken when taker != TakerState.clear"), "released_only_when_held"),
+])
+def test_a_broken_protocol_violates_its_property(tmp_path: Path, edit: tuple[str, str],
+                                                 broken: str) -> None:
+    report = _verify(tmp_path, (edit,))
+    assert report["verdict"] == "violated"
+    holds = {p["name"]: p["holds"] for p in report["user_properties"]}
+    assert holds[broken] is False, holds
