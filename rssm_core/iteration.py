@@ -23,37 +23,33 @@ Condition = tuple[str, str, Predicate]          # (name, "terminal" | "error", p
 
 
 class NewFlags:
-    """``new(x)`` of a subsystem's inputs (input k is bit k of :attr:`mask`)."""
+    """``new(x)`` of a subsystem's inputs (input k is bit k of :attr:`pending` and
+    :attr:`mask`)."""
 
-    __slots__ = ("flags", "mask")
+    __slots__ = ("inputs", "mask", "pending")
 
     def __init__(self, inputs: int) -> None:
-        self.flags = [False] * inputs
-        self.mask = 0
+        self.inputs = inputs
+        self.pending = 0          # new(x) as the receives have set it since the last use
+        self.mask = 0             # ... as frozen for the transition function
 
     def received(self, k: int) -> None:
         """A receive took fresh data into input ``k``."""
-        self.flags[k] = True
+        self.pending |= 1 << k
 
     def freeze(self) -> int:
         """The transition function starts: the mask its data cases are chosen by."""
-        mask = 0
-        for k, flag in enumerate(self.flags):
-            if flag:
-                mask |= 1 << k
-        self.mask = mask
+        mask = self.mask = self.pending
         return mask
 
     def used(self) -> None:
         """The transition function has used the data: every new(x) is false again (the
         mask keeps what that transition function saw until the next :meth:`freeze`)."""
-        flags = self.flags
-        for k in range(len(flags)):
-            flags[k] = False
+        self.pending = 0
 
     def values(self) -> list[bool]:
         """new(x) as the frozen mask gives it, input by input."""
-        return [bool(self.mask >> k & 1) for k in range(len(self.flags))]
+        return [bool(self.mask >> k & 1) for k in range(self.inputs)]
 
 
 def end_conditions(conditions: Sequence[Condition], state: Any, failed: bool,

@@ -33,15 +33,24 @@ writes the token game while it runs), so the unsafe check of such a place is lef
 other count, the calls on the enabled set and the pushes on the stack of local steps are the
 step-by-step rule's, in the same order, so the state any operation, effect or failure sees is
 the same. The names the code uses are bound as default arguments (fast locals).
+
+The net's place invariants say more (:func:`exclusive_places`): a place exclusive with an input
+place of the transition holds no token when the function is entered (the function runs only
+from markings the firing rule reaches from the initial marking, where the invariants hold).
+Such a place needs no unsafe check until the function marks it; a transition reading one is not
+enabled, so emptying a place it shares with the firing transition needs no test on its count
+and no call on the enabled set, and marking another of its places cannot enable it. The checks
+and tests left out are those whose outcome is known, so the code does what the rule says.
 """
 
 from __future__ import annotations
 
 import re
-from collections.abc import Callable, Collection, Mapping, Sequence
+from collections.abc import Callable, Collection, Mapping, Sequence, Set
 from types import CodeType
 from typing import Any
 
+from rssm_dsl.hpn.flat import FlatNet
 from rssm_dsl.interp.engine import TokenGame
 
 Action = Callable[[], None]
@@ -51,6 +60,36 @@ _CODE: dict[str, CodeType] = {}  # compiled sources, shared by the runs of a pro
 MAX_CACHED = 100_000
 # the names of the namespace a function uses (bound as default arguments: fast locals)
 _NAMES = re.compile(r"\b(?:tokens|missing|_add|_discard|_local|_unsafe|_failure|[eoGN][0-9]+)\b")
+# a call out of the token game's bookkeeping: an effect, an operation, an unsafe report
+_CALLS_OUT = re.compile(r"\b(?:[eo][0-9]+|co|_unsafe)\(")
+INVARIANT_ROWS = 2_000           # bounds of the place invariants' computation
+INVARIANT_SECONDS = 1.0
+MAX_NETS = 256                   # nets whose exclusive places are kept
+_EXCLUSIVE: dict[tuple[object, ...], tuple[frozenset[int], ...]] = {}   # by net structure
+
+
+def exclusive_places(net: FlatNet) -> tuple[frozenset[int], ...]:
+    """Per place ``q``, the places that hold no token whenever ``q`` holds one, in every
+    marking reached from the initial marking by the firing rule, as the net's place
+    invariants prove: ``p`` and ``q`` are in the support of a P-semiflow ``y`` whose weighted
+    token count ``y . m0`` is less than ``y_p + y_q``. Invariants left out by the bounds of
+    their computation only prove less. Computed once per net structure in a process."""
+    key = (len(net.places), net.initial, tuple((t.pre, t.post) for t in net.transitions))
+    known = _EXCLUSIVE.get(key)
+    if known is not None:
+        return known
+    from rssm_dsl.verify.invariants import place_invariants  # numpy: imported when needed
+
+    found = place_invariants(net, INVARIANT_ROWS, INVARIANT_SECONDS)
+    exclusive: list[set[int]] = [set() for _ in net.places]
+    for inv in found.invariants:
+        for q, wq in inv.weights:
+            exclusive[q].update(p for p, wp in inv.weights if p != q and wp + wq > inv.tokens)
+    result = tuple(frozenset(ps) for ps in exclusive)
+    if len(_EXCLUSIVE) >= MAX_NETS:
+        _EXCLUSIVE.clear()
+    _EXCLUSIVE[key] = result
+    return result
 
 
 class FiringCode:
@@ -66,6 +105,9 @@ class FiringCode:
         self.ops, self.effects, self.guards, self.gates = ops, effects, guards, gates
         self.eager = eager
         self.case_groups = case_groups
+        # what the place invariants prove (for the net the rule describes)
+        self.exclusive = exclusive_places(game.net) if game.rule is game.net.rule else \
+            tuple(frozenset[int]() for _ in game.net.places)
         self.ns: dict[str, Any] = {
             "tokens": game.tokens, "missing": game.missing, "_add": game.enabled.add,
             "_discard": game.enabled.discard, "_local": local.append, "_failure": failure,
@@ -117,13 +159,25 @@ class FiringCode:
         return fn
 
     # ------------------------------------------------------------------ pieces of code
-    def _consume(self, t: int, body: list[str], known: dict[int, int]) -> None:
-        """Empty the input places of ``t``. ``known``: the counts of missing tokens the
-        generator knows (``t``'s own, 0 on entry), updated here and written at the end."""
+    def _empty_before(self, t: int) -> set[int]:
+        """The places that hold no token when ``t`` is enabled: those exclusive with one of its
+        input places (which all hold one)."""
+        out: set[int] = set()
+        for q in self.game.rule.pre[t]:
+            out |= self.exclusive[q]
+        return out
+
+    def _consume(self, t: int, body: list[str], known: dict[int, int],
+                 empty: Set[int], held: Collection[int] = ()) -> None:
+        """Empty the input places of ``t`` (but those in ``held``, left marked). ``known``:
+        the counts of missing tokens the generator knows (``t``'s own, 0 on entry), updated
+        here and written at the end; ``empty``: places known to hold no token (a transition
+        reading one is not enabled)."""
         rule, eager = self.game.rule, self.eager
-        pre, consumers = rule.pre, rule.consumers
+        consumers = rule.consumers
+        pre = [p for p in rule.pre[t] if p not in held]
         known[t] = 0
-        for p in pre[t]:
+        for p in pre:
             body.append(f"tokens[{p}] = 0")
             for u in consumers[p]:
                 if u in known:
@@ -132,14 +186,16 @@ class FiringCode:
                     known[u] += 1
                 elif eager[u]:                   # local steps are not kept in the enabled set
                     body.append(f"missing[{u}] += 1")
-                elif len(pre[u]) == 1:
+                elif len(rule.pre[u]) == 1:
                     body.append(f"_discard({u})")
                     body.append(f"missing[{u}] = 1")
+                elif not empty.isdisjoint(rule.pre[u]):    # u is not enabled
+                    body.append(f"missing[{u}] += 1")
                 else:
                     body.append(f"if missing[{u}] == 0:")
                     body.append(f"    _discard({u})")
                     body.append(f"missing[{u}] += 1")
-        if pre[t]:
+        if pre:
             body.append(f"missing[{t}] = {known[t]}")
 
     def _effect(self, t: int, body: list[str]) -> None:
@@ -157,8 +213,10 @@ class FiringCode:
             self.ns[f"o{p}"] = self.ops[p]
             body += ["try:", f"    o{p}()", "except Exception as e:", f"    _failure({p}, e)"]
 
-    def _mark(self, p: int, body: list[str], known: dict[int, int]) -> None:
-        """The token of ``p`` is put and the transitions reading ``p`` are updated."""
+    def _mark(self, p: int, body: list[str], known: dict[int, int],
+              empty: Collection[int]) -> None:
+        """The token of ``p`` is put and the transitions reading ``p`` are updated (one that
+        also reads a place of ``empty``, known to hold no token, is not enabled by it)."""
         rule, eager = self.game.rule, self.eager
         pre, consumers = rule.pre, rule.consumers
         body.append(f"tokens[{p}] = 1")
@@ -172,26 +230,63 @@ class FiringCode:
             elif len(pre[u]) == 1:
                 body.append(f"missing[{u}] = 0")
                 body.append(enable)
+            elif any(q != p and q in empty for q in pre[u]):
+                body.append(f"missing[{u}] -= 1")
             else:
                 body.append(f"m = missing[{u}] - 1")
                 body.append(f"missing[{u}] = m")
                 body.append("if m == 0:")
                 body.append(f"    {enable}")
 
+    def _case(self, p: int, group: Any, body: list[str], empty: Collection[int]) -> None:
+        """The case of the partial function whose input place is ``p`` (``group``, a
+        ``CaseGroup``) fires, then its operation runs."""
+        self.ns[f"G{p}"] = group.table
+        self.ns[f"N{p}"] = group.state.new      # its mask is state.new_mask
+        # the case's transition, place, operation and `done` transition
+        body.append(f"ct, cp, co, cd = G{p}[N{p}.mask]")
+        if not all(row[1] in empty for row in group.table):
+            body += ["if tokens[cp]:", "    _unsafe(ct, cp)"]
+        run = ["try:", "    co()", "except Exception as e:", "    _failure(cp, e)"]
+        ops = [row[2] is not None for row in group.table]
+        if all(ops):
+            body += run
+        elif any(ops):
+            body += ["if co is not None:", *("    " + x for x in run)]
+
     def _firing(self, t: int) -> list[str]:
         body: list[str] = []
         known: dict[int, int] = {}
-        self._consume(t, body, known)
+        before = self._empty_before(t)
+        self._consume(t, body, known, before)
         self._effect(t, body)
-        empty = set(self.game.rule.pre[t])
+        empty = before | set(self.game.rule.pre[t])
         for p in self.game.rule.post[t]:
             self._arrive(str(t), p, body, empty)
-            self._mark(p, body, known)
+            self._mark(p, body, known, empty)
             empty.discard(p)
         return body
 
     def _macro(self, t: int) -> tuple[list[str], int]:
-        """The macro step of ``t``.
+        """The macro step of ``t`` (see :meth:`_steps`).
+
+        A place that ``t`` empties and marks again (a test arc: the fused place of a channel
+        that a transition of a communication mode reads) is left marked, without the
+        bookkeeping of both, when nothing between them can see the token game (the macro
+        calls no effect, no operation and no unsafe report: the places are marked at its
+        end) and no local step reads it: emptying it and marking it again changes no count
+        and leaves every transition that reads it in or out of the enabled set as it was."""
+        rule, eager = self.game.rule, self.eager
+        body, count = self._steps(t, ())
+        if not any(_CALLS_OUT.search(line) for line in body):
+            held = [p for p in rule.pre[t] if p in rule.post[t]
+                    and not any(eager[u] for u in rule.consumers[p])]
+            if held:
+                body, count = self._steps(t, held)
+        return body, count
+
+    def _steps(self, t: int, held: Collection[int]) -> tuple[list[str], int]:
+        """The macro step of ``t``, ``held``: places of ``t`` left marked (see :meth:`_macro`).
 
         From the output places of ``t`` the builder follows local steps symbolically: an
         unconditional, unpaced local transition whose input places were all marked within the
@@ -209,7 +304,9 @@ class FiringCode:
         body: list[str] = []
         virtual: dict[int, None] = {}      # marked within the macro, not yet consumed
         known: dict[int, int] = {}
-        empty = pre[t]                     # emptied by t; the macro marks them only at its end
+        before = self._empty_before(t)
+        # emptied by t or empty before it; the macro marks places only at its end
+        empty = before | set(pre[t]).difference(held)
 
         def produce(src: str, p: int) -> None:
             if p in virtual:
@@ -217,10 +314,11 @@ class FiringCode:
             self._arrive(src, p, body, empty)
             virtual[p] = None
 
-        self._consume(t, body, known)
+        self._consume(t, body, known, before, held)
         self._effect(t, body)
         for p in post[t]:
-            produce(str(t), p)
+            if p not in held:
+                produce(str(t), p)
         count = 1
         fired = {t}
         changed = True
@@ -235,17 +333,7 @@ class FiringCode:
                     fired.update(consumers[p])
                     fired.update(row[3] for row in group.table)
                     del virtual[p]
-                    self.ns[f"G{p}"] = group.table
-                    self.ns[f"N{p}"] = group.state.new      # its mask is state.new_mask
-                    # the case's transition, place, operation and `done` transition
-                    body += [f"ct, cp, co, cd = G{p}[N{p}.mask]",
-                             "if tokens[cp]:", "    _unsafe(ct, cp)"]
-                    run = ["try:", "    co()", "except Exception as e:", "    _failure(cp, e)"]
-                    ops = [row[2] is not None for row in group.table]
-                    if all(ops):
-                        body += run
-                    elif any(ops):
-                        body += ["if co is not None:", *("    " + x for x in run)]
+                    self._case(p, group, body, empty)
                     produce("cd", group.out_place)
                     count += 2
                     changed = True
@@ -262,6 +350,7 @@ class FiringCode:
                         count += 1
                         changed = True
                         break
+        settled = empty.difference(virtual)     # still empty at the end
         for p in virtual:
-            self._mark(p, body, known)
+            self._mark(p, body, known, settled)
         return body, count

@@ -497,12 +497,12 @@ class _Deterministic:
         conditional = self.conditional
         steps = 0
         # Below `fast` no look at progress is due and every macro step fits under the limit
-        # with room to spare: a turn fires its macro step and only checks for the final place
-        # (the limit cannot have been reached). At or above it, the turn checks as it always
-        # does (see `checked`). Without macro steps every turn takes the checked way.
+        # with room to spare: a turn fires its macro step (the limit cannot be reached). At or
+        # above it, the turn checks as it always does (see `checked`). Without macro steps
+        # every turn takes the checked way.
         table = macros if macros is not None else []
         spare = limit - max(mlen, default=1)
-        fast = min(self.next_look, spare) if macros is not None else -1
+        fast = self.fast_bound(spare)
         try:
             while True:                          # the loop is hot: locals only
                 if local:
@@ -522,6 +522,9 @@ class _Deterministic:
                     n = len(enabled)
                     if n == 1:
                         (t,) = enabled
+                    elif n == 2:                 # sorted(enabled)[int(rnd() * 2)]:
+                        a, b = enabled           # r * 2 < 1 exactly when r < 0.5
+                        t = (a if a < b else b) if rnd() < 0.5 else (b if a < b else a)
                     elif n:
                         t = sorted(enabled)[int(rnd() * n)]
                     else:
@@ -534,17 +537,15 @@ class _Deterministic:
                 if steps < fast:
                     table[t]()
                     steps += mlen[t]
-                    if tokens[final]:
-                        return self.ended(steps)
-                    continue
-                k = self.checked(t, steps)
-                fast = min(self.next_look, spare) if macros is not None else -1
-                if k:
-                    table[t]()
-                    steps += k
                 else:
-                    steps += 1
-                    self.fire_one(t, self.was_forced, steps)
+                    k = self.checked(t, steps)
+                    fast = self.fast_bound(spare)
+                    if k:
+                        table[t]()
+                        steps += k
+                    else:
+                        steps += 1
+                        self.fire_one(t, self.was_forced, steps)
                 if tokens[final] or steps >= limit:
                     return self.ended(steps)
         finally:
@@ -575,6 +576,11 @@ class _Deterministic:
         if gate is not None:
             gate.start(self.clock.ns)
         return t
+
+    def fast_bound(self, spare: int) -> int:
+        """The number of firings below which a turn takes the fast way (see :meth:`loop`):
+        the next look at progress, or ``spare`` (the limit less the longest macro step)."""
+        return min(self.next_look, spare) if self.macros is not None else -1
 
     def checked(self, t: int, steps: int) -> int:
         """A turn at or above the fast bound, before ``t`` fires: look at progress when it is

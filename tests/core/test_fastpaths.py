@@ -18,7 +18,7 @@ from hypothesis import HealthCheck, find, given, settings
 from hypothesis import strategies as st
 
 from rssm_core.firing import Marking, Net
-from rssm_dsl.interp.codegen import FiringCode
+from rssm_dsl.interp.codegen import FiringCode, exclusive_places
 from rssm_dsl.interp.engine import TokenGame, UnsafeFiring
 from rssm_dsl.verify.netbits import NetBits, bits, from_words, to_words
 from rssm_dsl.verify.statespace import _Kernel, explore_full
@@ -142,6 +142,24 @@ def test_compiled_firing_code_is_the_rule(net: RandomNet, data: st.DataObject) -
         assert sorted(local[before:]) == sorted(woken)
 
 
+@PROPERTY
+@given(nets())
+def test_exclusive_places_are_never_marked_together(net: RandomNet) -> None:
+    """What the place invariants prove and the compiled firing code relies on (it leaves out
+    the checks and counts they decide): in every marking reached by safe firings, no place is
+    marked together with a place exclusive with it."""
+    rule, exclusive = net.rule(), exclusive_places(net.flat())
+    seen, frontier = {net.initial}, [net.initial]
+    while frontier:
+        marking = frontier.pop()
+        for q in marking:
+            assert not exclusive[q] & marking, (q, marking)
+        for f in rule.successors(marking):
+            if f.safe and f.marking not in seen:
+                seen.add(f.marking)
+                frontier.append(f.marking)
+
+
 def _macro_outcomes(rule: Net, marking: Marking, t: int, length: int,
                     eager: bytearray) -> tuple[set[Marking], bool]:
     """By the rule: the markings reached by firing ``t`` and then ``length - 1`` more distinct
@@ -197,6 +215,58 @@ def test_compiled_macro_steps_are_firing_sequences_of_the_rule(net: RandomNet,
         _check_game(game, rule, marking, eager)
         assert all(eager[u] and rule.enabled(marking, u) for u in local)
         local.clear()
+
+
+class _Unheld(FiringCode):
+    """Macro steps that empty and mark every test-arc place (none left marked)."""
+
+    def _macro(self, t: int) -> tuple[list[str], int]:
+        return self._steps(t, ())
+
+
+@PROPERTY
+@given(nets(), st.data())
+def test_macro_steps_leave_test_arcs_marked_only_where_it_cannot_be_seen(
+        net: RandomNet, data: st.DataObject) -> None:
+    """A macro step leaves a place it empties and marks again untouched only where nothing can
+    tell: from the same markings, with operations (on some places) that record the token game
+    when they run, it ends as the macro step that empties and marks it does (tokens, counts,
+    enabled set, the stack of local steps in its order, the unsafe report) and its operations
+    see the same."""
+    rule = net.rule()
+    n = rule.ntransitions
+    eager = bytearray(data.draw(st.lists(st.booleans(), min_size=n, max_size=n)))
+    observed = set(data.draw(st.lists(st.sampled_from(net.pool), max_size=2)))
+    picks = data.draw(st.lists(st.integers(0, 1 << 16), min_size=STEPS // 2,
+                               max_size=STEPS // 2))
+    runs: list[list[object]] = []
+    for kind in (FiringCode, _Unheld):
+        game = TokenGame(net.flat())
+        local: list[int] = []
+        seen: list[object] = []
+
+        def record(game: TokenGame = game, seen: list[object] = seen) -> None:
+            seen.append((list(game.tokens), list(game.missing), set(game.enabled)))
+
+        ops = [record if q in observed else None for q in range(rule.nplaces)]
+        none: list[Callable[[], None] | None] = [None] * n
+        code = kind(game, ops, none, [None] * n, [None] * n, eager, local, {}, _no_failure,
+                    _raise_unsafe, True)
+        assert code.macros is not None
+        game.enabled.difference_update(u for u in range(n) if eager[u])
+        for pick in picks:
+            enabled = rule.enabled_set(game.marking())
+            if not enabled:
+                break
+            try:
+                code.macros[enabled[pick % len(enabled)]]()
+            except Unsafe as e:
+                seen.append(("unsafe", e.t, e.p))
+                break
+            seen.append((list(game.tokens), list(game.missing), set(game.enabled), list(local)))
+            local.clear()
+        runs.append(seen)
+    assert runs[0] == runs[1]
 
 
 # ---------------------------------------------------------------- the verifier
