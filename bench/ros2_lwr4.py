@@ -41,6 +41,7 @@ def plot(path: Path, interp: Experiment, ros: simrun.RosRun, label: str) -> None
     from matplotlib.figure import Figure
 
     from rssm_dsl.ros2.tracking import samples
+    from rssm_dsl.run.plot import finish_path_axes
 
     mm = 1e3
     s_i, s_r = interp.samples, samples(ros.recording)
@@ -57,11 +58,7 @@ def plot(path: Path, interp: Experiment, ros: simrun.RosRun, label: str) -> None
     ax_xy.plot(s_r.actual[:, 0] * mm, s_r.actual[:, 1] * mm, color="#d62728", lw=1.0,
                label="ROS 2")
     ax_xy.set_title("(a) end-effector path", fontsize=10)
-    ax_xy.set_xlabel("x [mm]")
-    ax_xy.set_ylabel("y [mm]")
-    ax_xy.set_aspect("equal", adjustable="datalim")
-    ax_xy.grid(True, alpha=0.3)
-    ax_xy.legend(fontsize=8, loc="upper right")
+    finish_path_axes(ax_xy)
     ri, rr = interp.metrics.rms_error * mm, ros.metrics.rms_error * mm
     ax_e.plot(s_i.t, errors(s_i) * mm, color="#1f77b4", lw=1.6, alpha=0.7,
               label=f"interpreter, RMS {ri:.3f} mm")

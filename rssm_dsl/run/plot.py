@@ -5,7 +5,7 @@ error. Drawn with matplotlib's Agg backend (no display), returned as PNG bytes."
 from __future__ import annotations
 
 import io
-from typing import TYPE_CHECKING
+from typing import TYPE_CHECKING, Any
 
 import numpy as np
 
@@ -13,6 +13,15 @@ if TYPE_CHECKING:
     from rssm_dsl.run.experiment import Experiment
 
 COLOURS = ("#1f77b4", "#d62728", "#2ca02c", "#9467bd", "#8c564b", "#e377c2")
+
+
+def finish_path_axes(ax: Any) -> None:
+    """Labels, equal scales, grid and legend of a path in the horizontal plane (mm)."""
+    ax.set_xlabel("x [mm]")
+    ax.set_ylabel("y [mm]")
+    ax.set_aspect("equal", adjustable="datalim")
+    ax.grid(True, alpha=0.3)
+    ax.legend(fontsize=8, loc="upper right")
 
 
 def figure_png(exp: Experiment, dpi: int = 120) -> bytes:
@@ -46,11 +55,7 @@ def figure_png(exp: Experiment, dpi: int = 120) -> bytes:
                         f"(fit), z = {fit.height * mm:.1f} mm", fontsize=10)
     else:
         ax_xy.set_title("(a) end-effector path", fontsize=10)
-    ax_xy.set_xlabel("x [mm]")
-    ax_xy.set_ylabel("y [mm]")
-    ax_xy.set_aspect("equal", adjustable="datalim")
-    ax_xy.grid(True, alpha=0.3)
-    ax_xy.legend(fontsize=8, loc="upper right")
+    finish_path_axes(ax_xy)
 
     # (b) coordinates over time, relative to the start
     origin = s.actual[0] if len(s.t) else np.zeros(3)
