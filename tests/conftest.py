@@ -24,9 +24,10 @@ def update_goldens(request: pytest.FixtureRequest) -> bool:
     return flag
 
 
-# examples/verify/ systems written the way engineers write them: beyond full exploration (the
-# sliced verifier decides them, tests/verify/test_slicing.py)
-REALISTIC = frozenset({"handover_buggy", "handover", "rover", "palletizer"})
+# examples/verify/ systems written the way engineers write them, and examples/ with two robots
+# talking: beyond full exploration (the sliced verifier decides them,
+# tests/verify/test_slicing.py)
+REALISTIC = frozenset({"handover_buggy", "handover", "rover", "palletizer", "panda_handover"})
 
 
 def example_specs() -> list[Path]:

@@ -81,21 +81,21 @@ def _initial(p: Mapping[str, Any]) -> State:
 
 
 def f_1_1_1(st: State, stage: dict[str, Any]) -> None:
-    # fetch: update cmd, examples/panda_handover.rssm:65
+    # fetch: update cmd, examples/panda_handover.rssm:68
     v_duration = st.v_duration
     v_t = st.v_t
-    v_cmd = _rt.call(x_min_jerk_joints, CV1, 'min_jerk_joints', 'examples/panda_handover.rssm:65:29', k_pick, k_meet, v_duration, v_t)
+    v_cmd = _rt.call(x_min_jerk_joints, CV1, 'min_jerk_joints', 'examples/panda_handover.rssm:68:29', k_pick, k_meet, v_duration, v_t)
     stage['v_cmd'] = v_cmd
 
 
 def f_1_2_1(st: State, stage: dict[str, Any]) -> None:
-    # fetch: update offering, examples/panda_handover.rssm:66
+    # fetch: update offering, examples/panda_handover.rssm:69
     v_offering = False
     stage['v_offering'] = v_offering
 
 
 def f_1_3_1(st: State, stage: dict[str, Any]) -> None:
-    # fetch: update memory, examples/panda_handover.rssm:67
+    # fetch: update memory, examples/panda_handover.rssm:70
     v_t = st.v_t
     v_t = (v_t + 0.01)
     stage['v_t'] = v_t
@@ -111,19 +111,19 @@ def cond_1_1(st: State) -> bool:
 
 
 def f_2_1_1(st: State, stage: dict[str, Any]) -> None:
-    # offer: update cmd, examples/panda_handover.rssm:73
+    # offer: update cmd, examples/panda_handover.rssm:76
     v_cmd = {'q': k_meet, 'dq': k_at_rest}
     stage['v_cmd'] = v_cmd
 
 
 def f_2_2_1(st: State, stage: dict[str, Any]) -> None:
-    # offer: update offering, examples/panda_handover.rssm:74
+    # offer: update offering, examples/panda_handover.rssm:77
     v_offering = True
     stage['v_offering'] = v_offering
 
 
 def f_2_3_1(st: State, stage: dict[str, Any]) -> None:
-    # offer: update memory, examples/panda_handover.rssm:75
+    # offer: update memory, examples/panda_handover.rssm:78
     v_t = 0.0
     stage['v_t'] = v_t
 
@@ -135,19 +135,19 @@ def cond_2_1(st: State) -> bool:
 
 
 def f_3_1_1(st: State, stage: dict[str, Any]) -> None:
-    # release: update cmd, examples/panda_handover.rssm:81
+    # release: update cmd, examples/panda_handover.rssm:84
     v_cmd = {'q': k_meet, 'dq': k_at_rest}
     stage['v_cmd'] = v_cmd
 
 
 def f_3_2_1(st: State, stage: dict[str, Any]) -> None:
-    # release: update offering, examples/panda_handover.rssm:82
+    # release: update offering, examples/panda_handover.rssm:85
     v_offering = True
     stage['v_offering'] = v_offering
 
 
 def f_3_3_1(st: State, stage: dict[str, Any]) -> None:
-    # release: update memory, examples/panda_handover.rssm:83
+    # release: update memory, examples/panda_handover.rssm:86
     v_t = st.v_t
     v_t = (v_t + 0.01)
     stage['v_t'] = v_t
@@ -161,22 +161,22 @@ def cond_3_1(st: State) -> bool:
 
 
 def f_4_1_1(st: State, stage: dict[str, Any]) -> None:
-    # back: update cmd, examples/panda_handover.rssm:89
+    # back: update cmd, examples/panda_handover.rssm:92
     v_duration = st.v_duration
     v_dwell = st.v_dwell
     v_t = st.v_t
-    v_cmd = _rt.call(x_min_jerk_joints, CV1, 'min_jerk_joints', 'examples/panda_handover.rssm:89:29', k_meet, k_pick, v_duration, (v_t - v_dwell))
+    v_cmd = _rt.call(x_min_jerk_joints, CV1, 'min_jerk_joints', 'examples/panda_handover.rssm:92:29', k_meet, k_pick, v_duration, (v_t - v_dwell))
     stage['v_cmd'] = v_cmd
 
 
 def f_4_2_1(st: State, stage: dict[str, Any]) -> None:
-    # back: update offering, examples/panda_handover.rssm:90
+    # back: update offering, examples/panda_handover.rssm:93
     v_offering = False
     stage['v_offering'] = v_offering
 
 
 def f_4_3_1(st: State, stage: dict[str, Any]) -> None:
-    # back: update memory, examples/panda_handover.rssm:91
+    # back: update memory, examples/panda_handover.rssm:94
     v_t = st.v_t
     v_t = (v_t + 0.01)
     stage['v_t'] = v_t
@@ -193,19 +193,19 @@ def cond_4_1(st: State) -> bool:
 
 
 def f_5_1_1(st: State, stage: dict[str, Any]) -> None:
-    # pause: update cmd, examples/panda_handover.rssm:97
+    # pause: update cmd, examples/panda_handover.rssm:100
     v_cmd = {'q': k_pick, 'dq': k_at_rest}
     stage['v_cmd'] = v_cmd
 
 
 def f_5_2_1(st: State, stage: dict[str, Any]) -> None:
-    # pause: update offering, examples/panda_handover.rssm:98
+    # pause: update offering, examples/panda_handover.rssm:101
     v_offering = False
     stage['v_offering'] = v_offering
 
 
 def f_5_3_1(st: State, stage: dict[str, Any]) -> None:
-    # pause: update memory, examples/panda_handover.rssm:99
+    # pause: update memory, examples/panda_handover.rssm:102
     v_t = 0.0
     stage['v_t'] = v_t
 
@@ -257,7 +257,7 @@ def iterate_1(r: _Runner) -> _Iteration:
 def switch_1(st: State, conds: Mapping[str, bool]) -> str | None:
     # after fetch: the first switch whose condition holds
     c_at_meet = conds.get('at_meet', False)
-    if c_at_meet:  # switch fetch -> offer, examples/panda_handover.rssm:104
+    if c_at_meet:  # switch fetch -> offer, examples/panda_handover.rssm:107
         return 'offer'
     raise _NoSwitch('fetch')
 
@@ -303,7 +303,7 @@ def iterate_2(r: _Runner) -> _Iteration:
 def switch_2(st: State, conds: Mapping[str, bool]) -> str | None:
     # after offer: the first switch whose condition holds
     c_taken = conds.get('taken', False)
-    if c_taken:  # switch offer -> release, examples/panda_handover.rssm:105
+    if c_taken:  # switch offer -> release, examples/panda_handover.rssm:108
         return 'release'
     raise _NoSwitch('offer')
 
@@ -349,7 +349,7 @@ def iterate_3(r: _Runner) -> _Iteration:
 def switch_3(st: State, conds: Mapping[str, bool]) -> str | None:
     # after release: the first switch whose condition holds
     c_opened = conds.get('opened', False)
-    if c_opened:  # switch release -> back, examples/panda_handover.rssm:106
+    if c_opened:  # switch release -> back, examples/panda_handover.rssm:109
         return 'back'
     raise _NoSwitch('release')
 
@@ -395,7 +395,7 @@ def iterate_4(r: _Runner) -> _Iteration:
 def switch_4(st: State, conds: Mapping[str, bool]) -> str | None:
     # after back: the first switch whose condition holds
     c_at_pick = conds.get('at_pick', False)
-    if c_at_pick:  # switch back -> pause, examples/panda_handover.rssm:107
+    if c_at_pick:  # switch back -> pause, examples/panda_handover.rssm:110
         return 'pause'
     raise _NoSwitch('back')
 
@@ -441,7 +441,7 @@ def iterate_5(r: _Runner) -> _Iteration:
 def switch_5(st: State, conds: Mapping[str, bool]) -> str | None:
     # after pause: the first switch whose condition holds
     c_clear = conds.get('clear', False)
-    if c_clear:  # switch pause -> fetch, examples/panda_handover.rssm:108
+    if c_clear:  # switch pause -> fetch, examples/panda_handover.rssm:111
         return 'fetch'
     raise _NoSwitch('pause')
 

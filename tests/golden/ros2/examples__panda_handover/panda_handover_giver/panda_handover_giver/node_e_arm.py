@@ -80,34 +80,34 @@ def _initial(p: Mapping[str, Any]) -> State:
 
 
 def f_1_1_1(st: State, stage: dict[str, Any]) -> None:
-    # track: update torque, examples/panda_handover.rssm:125
+    # track: update torque, examples/panda_handover.rssm:128
     v_kd = st.v_kd
     v_kp = st.v_kp
     v_setpoint = st.v_setpoint
     v_state = st.v_state
-    v_torque = _rt.call(x_joint_pd_gravity, CV2, 'joint_pd_gravity', 'examples/panda_handover.rssm:126:23', 'panda', v_state, v_setpoint, v_kp, v_kd)
+    v_torque = _rt.call(x_joint_pd_gravity, CV2, 'joint_pd_gravity', 'examples/panda_handover.rssm:129:23', 'panda', v_state, v_setpoint, v_kp, v_kd)
     stage['v_torque'] = v_torque
 
 
 def f_1_1_2(st: State, stage: dict[str, Any]) -> None:
-    # track: update torque, examples/panda_handover.rssm:127
+    # track: update torque, examples/panda_handover.rssm:130
     v_kd = st.v_kd
     v_kp = st.v_kp
     v_last = st.v_last
     v_state = st.v_state
-    v_torque = _rt.call(x_joint_pd_gravity, CV2, 'joint_pd_gravity', 'examples/panda_handover.rssm:128:23', 'panda', v_state, v_last, v_kp, v_kd)
+    v_torque = _rt.call(x_joint_pd_gravity, CV2, 'joint_pd_gravity', 'examples/panda_handover.rssm:131:23', 'panda', v_state, v_last, v_kp, v_kd)
     stage['v_torque'] = v_torque
 
 
 def f_1_2_1(st: State, stage: dict[str, Any]) -> None:
-    # track: update joints, examples/panda_handover.rssm:132
+    # track: update joints, examples/panda_handover.rssm:135
     v_state = st.v_state
     v_joints = v_state['q']
     stage['v_joints'] = v_joints
 
 
 def f_1_3_1(st: State, stage: dict[str, Any]) -> None:
-    # track: update memory, examples/panda_handover.rssm:134
+    # track: update memory, examples/panda_handover.rssm:137
     v_dt = st.v_dt
     v_last = st.v_last
     v_setpoint = st.v_setpoint
@@ -118,7 +118,7 @@ def f_1_3_1(st: State, stage: dict[str, Any]) -> None:
 
 
 def f_1_3_2(st: State, stage: dict[str, Any]) -> None:
-    # track: update memory, examples/panda_handover.rssm:138
+    # track: update memory, examples/panda_handover.rssm:141
     v_dt = st.v_dt
     v_last = st.v_last
     _v1 = _rt.aadd(v_last['q'], _rt.amul(v_last['dq'], v_dt))

@@ -81,19 +81,19 @@ def _initial(p: Mapping[str, Any]) -> State:
 
 
 def f_1_1_1(st: State, stage: dict[str, Any]) -> None:
-    # wait: update cmd, examples/panda_handover.rssm:164
+    # wait: update cmd, examples/panda_handover.rssm:167
     v_cmd = {'q': k_place, 'dq': k_at_rest}
     stage['v_cmd'] = v_cmd
 
 
 def f_1_2_1(st: State, stage: dict[str, Any]) -> None:
-    # wait: update state, examples/panda_handover.rssm:165
+    # wait: update state, examples/panda_handover.rssm:168
     v_state = 'clear'
     stage['v_state'] = v_state
 
 
 def f_1_3_1(st: State, stage: dict[str, Any]) -> None:
-    # wait: update memory, examples/panda_handover.rssm:166
+    # wait: update memory, examples/panda_handover.rssm:169
     v_t = 0.0
     stage['v_t'] = v_t
 
@@ -105,21 +105,21 @@ def cond_1_1(st: State) -> bool:
 
 
 def f_2_1_1(st: State, stage: dict[str, Any]) -> None:
-    # approach: update cmd, examples/panda_handover.rssm:172
+    # approach: update cmd, examples/panda_handover.rssm:175
     v_duration = st.v_duration
     v_t = st.v_t
-    v_cmd = _rt.call(x_min_jerk_joints, CV1, 'min_jerk_joints', 'examples/panda_handover.rssm:172:29', k_place, k_meet, v_duration, v_t)
+    v_cmd = _rt.call(x_min_jerk_joints, CV1, 'min_jerk_joints', 'examples/panda_handover.rssm:175:29', k_place, k_meet, v_duration, v_t)
     stage['v_cmd'] = v_cmd
 
 
 def f_2_2_1(st: State, stage: dict[str, Any]) -> None:
-    # approach: update state, examples/panda_handover.rssm:173
+    # approach: update state, examples/panda_handover.rssm:176
     v_state = 'moving'
     stage['v_state'] = v_state
 
 
 def f_2_3_1(st: State, stage: dict[str, Any]) -> None:
-    # approach: update memory, examples/panda_handover.rssm:174
+    # approach: update memory, examples/panda_handover.rssm:177
     v_t = st.v_t
     v_t = (v_t + 0.01)
     stage['v_t'] = v_t
@@ -135,19 +135,19 @@ def cond_2_1(st: State) -> bool:
 
 
 def f_3_1_1(st: State, stage: dict[str, Any]) -> None:
-    # grasp: update cmd, examples/panda_handover.rssm:180
+    # grasp: update cmd, examples/panda_handover.rssm:183
     v_cmd = {'q': k_meet, 'dq': k_at_rest}
     stage['v_cmd'] = v_cmd
 
 
 def f_3_2_1(st: State, stage: dict[str, Any]) -> None:
-    # grasp: update state, examples/panda_handover.rssm:181
+    # grasp: update state, examples/panda_handover.rssm:184
     v_state = 'moving'
     stage['v_state'] = v_state
 
 
 def f_3_3_1(st: State, stage: dict[str, Any]) -> None:
-    # grasp: update memory, examples/panda_handover.rssm:182
+    # grasp: update memory, examples/panda_handover.rssm:185
     v_t = st.v_t
     v_t = (v_t + 0.01)
     stage['v_t'] = v_t
@@ -162,19 +162,19 @@ def cond_3_1(st: State) -> bool:
 
 
 def f_4_1_1(st: State, stage: dict[str, Any]) -> None:
-    # hold: update cmd, examples/panda_handover.rssm:188
+    # hold: update cmd, examples/panda_handover.rssm:191
     v_cmd = {'q': k_meet, 'dq': k_at_rest}
     stage['v_cmd'] = v_cmd
 
 
 def f_4_2_1(st: State, stage: dict[str, Any]) -> None:
-    # hold: update state, examples/panda_handover.rssm:189
+    # hold: update state, examples/panda_handover.rssm:192
     v_state = 'holding'
     stage['v_state'] = v_state
 
 
 def f_4_3_1(st: State, stage: dict[str, Any]) -> None:
-    # hold: update memory, examples/panda_handover.rssm:190
+    # hold: update memory, examples/panda_handover.rssm:193
     v_t = 0.0
     stage['v_t'] = v_t
 
@@ -186,21 +186,21 @@ def cond_4_1(st: State) -> bool:
 
 
 def f_5_1_1(st: State, stage: dict[str, Any]) -> None:
-    # leave: update cmd, examples/panda_handover.rssm:196
+    # leave: update cmd, examples/panda_handover.rssm:199
     v_duration = st.v_duration
     v_t = st.v_t
-    v_cmd = _rt.call(x_min_jerk_joints, CV1, 'min_jerk_joints', 'examples/panda_handover.rssm:196:29', k_meet, k_place, v_duration, v_t)
+    v_cmd = _rt.call(x_min_jerk_joints, CV1, 'min_jerk_joints', 'examples/panda_handover.rssm:199:29', k_meet, k_place, v_duration, v_t)
     stage['v_cmd'] = v_cmd
 
 
 def f_5_2_1(st: State, stage: dict[str, Any]) -> None:
-    # leave: update state, examples/panda_handover.rssm:197
+    # leave: update state, examples/panda_handover.rssm:200
     v_state = 'moving'
     stage['v_state'] = v_state
 
 
 def f_5_3_1(st: State, stage: dict[str, Any]) -> None:
-    # leave: update memory, examples/panda_handover.rssm:198
+    # leave: update memory, examples/panda_handover.rssm:201
     v_t = st.v_t
     v_t = (v_t + 0.01)
     stage['v_t'] = v_t
@@ -256,7 +256,7 @@ def iterate_1(r: _Runner) -> _Iteration:
 def switch_1(st: State, conds: Mapping[str, bool]) -> str | None:
     # after wait: the first switch whose condition holds
     c_told = conds.get('told', False)
-    if c_told:  # switch wait -> approach, examples/panda_handover.rssm:203
+    if c_told:  # switch wait -> approach, examples/panda_handover.rssm:206
         return 'approach'
     raise _NoSwitch('wait')
 
@@ -302,7 +302,7 @@ def iterate_2(r: _Runner) -> _Iteration:
 def switch_2(st: State, conds: Mapping[str, bool]) -> str | None:
     # after approach: the first switch whose condition holds
     c_at_meet = conds.get('at_meet', False)
-    if c_at_meet:  # switch approach -> grasp, examples/panda_handover.rssm:204
+    if c_at_meet:  # switch approach -> grasp, examples/panda_handover.rssm:207
         return 'grasp'
     raise _NoSwitch('approach')
 
@@ -348,7 +348,7 @@ def iterate_3(r: _Runner) -> _Iteration:
 def switch_3(st: State, conds: Mapping[str, bool]) -> str | None:
     # after grasp: the first switch whose condition holds
     c_closed = conds.get('closed', False)
-    if c_closed:  # switch grasp -> hold, examples/panda_handover.rssm:205
+    if c_closed:  # switch grasp -> hold, examples/panda_handover.rssm:208
         return 'hold'
     raise _NoSwitch('grasp')
 
@@ -394,7 +394,7 @@ def iterate_4(r: _Runner) -> _Iteration:
 def switch_4(st: State, conds: Mapping[str, bool]) -> str | None:
     # after hold: the first switch whose condition holds
     c_free = conds.get('free', False)
-    if c_free:  # switch hold -> leave, examples/panda_handover.rssm:206
+    if c_free:  # switch hold -> leave, examples/panda_handover.rssm:209
         return 'leave'
     raise _NoSwitch('hold')
 
@@ -440,7 +440,7 @@ def iterate_5(r: _Runner) -> _Iteration:
 def switch_5(st: State, conds: Mapping[str, bool]) -> str | None:
     # after leave: the first switch whose condition holds
     c_at_place = conds.get('at_place', False)
-    if c_at_place:  # switch leave -> wait, examples/panda_handover.rssm:207
+    if c_at_place:  # switch leave -> wait, examples/panda_handover.rssm:210
         return 'wait'
     raise _NoSwitch('leave')
 
