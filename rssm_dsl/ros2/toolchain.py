@@ -34,6 +34,8 @@ from pathlib import Path
 REQUIREMENTS = Path(__file__).resolve().with_name("requirements-jazzy.txt")
 # MuJoCo and Pinocchio, for workspaces whose nodes simulate an arm (ensure_extra)
 PHYSICS = Path(__file__).resolve().with_name("requirements-physics.txt")
+# the robot models of stdlib/robots (example-robot-data), on top of PHYSICS
+ROBOTS = Path(__file__).resolve().with_name("requirements-robots.txt")
 WHEEL_PYTHON_PREFIX = "/opt/python/cp311-cp311"
 STAMP = ".rssm-requirements.sha256"
 

@@ -42,21 +42,17 @@ INTERP_UNTIL = 30.0        # simulated seconds of the interpreter's run: beyond 
 # lwr4_circle: built by test_lwr4.py; a device node stepping MuJoCo and an effector node calling
 # Pinocchio, on the wall clock here (the ROS venv gets requirements-physics.txt for them).
 DEFAULT = {"relay", "wire", "deploy", "finite", "mode_bn", "lockstep", "lwr4_circle"}
-PHYSICS = {"lwr4_circle", "panda_joints"}
-CANNOT_RUN = {"panda_joints": "its Panda's URDF and meshes come from example-robot-data (about "
-                              "400 MB), which the ROS venv does not install",
-              "panda_handover": "its Pandas' URDF and meshes come from example-robot-data "
-                                "(about 400 MB), which the ROS venv does not install"}
+# The Pandas' URDF and meshes come from example-robot-data (requirements-robots.txt, about
+# 400 MB): installed for RSSM_ROS2_ALL_SPECS=1 only.
+PHYSICS = {"lwr4_circle", "panda_joints", "panda_handover"}
+ROBOTS = {"panda_joints", "panda_handover"}
 
 
 def _specs() -> list[object]:
     out: list[object] = []
     for spec in [*sorted(SPECS.glob("*.rssm")), *example_specs()]:
         name = str(spec.relative_to(ROOT))
-        if spec.stem in CANNOT_RUN:
-            out.append(pytest.param(spec, id=name, marks=pytest.mark.skip(
-                reason=f"{name}: {CANNOT_RUN[spec.stem]}")))
-        elif spec.stem not in DEFAULT and not os.environ.get("RSSM_ROS2_ALL_SPECS"):
+        if spec.stem not in DEFAULT and not os.environ.get("RSSM_ROS2_ALL_SPECS"):
             out.append(pytest.param(spec, id=name, marks=pytest.mark.skip(
                 reason=f"{name}: a build of its own (~20 s); RSSM_ROS2_ALL_SPECS=1 runs it")))
         else:
@@ -140,6 +136,8 @@ def test_agents_apart_do_what_the_interpreter_does(
         processes: Processes) -> None:
     if spec.stem in PHYSICS:
         toolchain.ensure_extra(ros_venv)
+    if spec.stem in ROBOTS:
+        toolchain.ensure_extra(ros_venv, toolchain.ROBOTS)
     t0 = time.monotonic()
     built = build_spec(spec, ros_venv, build_dir)
     t_build = time.monotonic() - t0
