@@ -294,13 +294,23 @@ def _record(d: Desc) -> Convert:
     fields = [(n, converter(fd)) for n, fd in d[2]]
     names = {n for n, _ in d[2]}
     size = len(fields)
+    # per field, the shape of a float[N] field (None for the others): a value of that type
+    # already is taken as it is without calling its converter (the converter's common case)
+    shapes = [(n, conv, (fd[2],) if is_float_array(fd) else None)
+              for (n, conv), (_, fd) in zip(fields, d[2], strict=True)]
+    ndarray, f64 = np.ndarray, np.dtype(np.float64)
 
     def to_dict(v: Any) -> dict[str, Any]:
         if type(v) is dict and len(v) == size:
             out: dict[str, Any] = {}
             try:
-                for n, conv in fields:       # a loop: cheaper than a comprehension's frame
-                    out[n] = conv(v[n])
+                for n, conv, shape in shapes:   # a loop: cheaper than a comprehension's frame
+                    x = v[n]
+                    if (shape is not None and type(x) is ndarray and x.dtype is f64
+                            and x.shape == shape and not x.flags.writeable):
+                        out[n] = x
+                    else:
+                        out[n] = conv(x)
                 return out
             except (KeyError, ValueTypeError):
                 pass                     # the slow path below says what is wrong

@@ -56,7 +56,8 @@ from rssm_dsl.interp.engine import TokenGame
 Action = Callable[[], None]
 Step = Callable[[], object]      # an operation or an effect (what it returns is not used)
 MAX_MACRO = 64                   # firings in one macro step at most
-_CODE: dict[str, CodeType] = {}  # compiled sources, shared by the runs of a process
+# the compiled functions by name and body, shared by the runs of a process
+_CODE: dict[tuple[str, str], CodeType] = {}
 MAX_CACHED = 100_000
 # the names of the namespace a function uses (bound as default arguments: fast locals)
 _NAMES = re.compile(r"\b(?:tokens|missing|_add|_discard|_local|_unsafe|_failure|[eoGN][0-9]+)\b")
@@ -146,13 +147,13 @@ class FiringCode:
 
     def _compile(self, name: str, body: list[str]) -> Action:
         text = "\n".join("    " + line for line in body or ["pass"])
-        names = sorted(set(_NAMES.findall(text)))
-        source = f"def {name}({', '.join(f'{n}={n}' for n in names)}):\n" + text
-        code = _CODE.get(source)
+        code = _CODE.get((name, text))
         if code is None:
+            names = sorted(set(_NAMES.findall(text)))
+            source = f"def {name}({', '.join(f'{n}={n}' for n in names)}):\n" + text
             if len(_CODE) >= MAX_CACHED:
                 _CODE.clear()
-            code = _CODE[source] = compile(source, f"<rssm {name}>", "exec")
+            code = _CODE[name, text] = compile(source, f"<rssm {name}>", "exec")
         # generated from indices only: no text of the specification
         exec(code, self.ns)
         fn: Action = self.ns.pop(name)
