@@ -25,7 +25,7 @@ def _blocks() -> list[tuple[str, str, list[str]]]:
     found = []
     for doc in DOCS:
         text = doc.read_text(encoding="utf-8")
-        for block in re.findall(r"```[a-z]*\n(.*?)```", text, re.S):
+        for block in re.findall(r"```[^\n]*\n(.*?)```", text, re.S):
             lines = block.rstrip("\n").splitlines()
             if lines and lines[0].startswith("$ rssmc "):
                 found.append((doc.relative_to(ROOT).as_posix(), lines[0][2:], lines[1:]))

@@ -58,3 +58,25 @@ def test_text_summary_and_lwr4_only_options(tmp_path: Path) -> None:
         bad = rssmc("run", PANDA, "-o", tmp_path / "x", *option)
         assert bad.returncode == 2
         assert "apply to the LWR4+ experiment only" in bad.stderr
+
+
+def test_every_arm_needs_its_joint_set_points(tmp_path: Path) -> None:
+    # two arms driven by one effector that receives no joint set points: E870 at the first
+    from rssm_dsl.diagnostics import Diagnostic
+    from rssm_dsl.pipeline import compile_file
+    from rssm_dsl.run.joints import find_joint_rig, find_joint_rigs
+    from tests.robots.conftest import write_robots, write_spec
+
+    comp = compile_file(write_spec(write_robots(tmp_path)))
+    assert comp.ok and comp.system is not None
+    found = find_joint_rigs(comp.system)
+    assert isinstance(found, Diagnostic) and found.code == "E870"
+    assert found.message == ("a1.e.hold receives no joint set points (a record with "
+                             "`q: float[n]`) from another subsystem")
+    assert find_joint_rig(comp.system) == found
+    # the Panda example has one arm
+    panda = compile_file(PANDA).system
+    assert panda is not None
+    rigs = find_joint_rigs(panda)
+    assert not isinstance(rigs, Diagnostic)
+    assert [r.device for r in rigs] == ["a1.E.arm"]
