@@ -46,6 +46,20 @@ def test_bench_prints_the_figures() -> None:
     assert "tracking   joint RMS " in proc.stdout and "per joint  RMS " in proc.stdout
 
 
+@needs_robot_data
+def test_bench_prints_each_arm_of_the_handover() -> None:
+    proc = subprocess.run([sys.executable, "bench/panda.py", "--spec",
+                           "examples/panda_handover.rssm", "--switches", "1"], cwd=ROOT,
+                          capture_output=True, text=True, timeout=300)
+    assert proc.returncode == 0, proc.stderr
+    lines = proc.stdout.splitlines()
+    assert lines[0] == "panda_handover: 2 arms simulated by MuJoCo"
+    assert "(switches)" in lines[3]       # stopped at the giver's first switch, at the offer
+    for arm in ("giver.E.arm", "taker.E.arm"):
+        assert any(x.startswith(f"  tracking   {arm} joint RMS ") for x in lines), lines
+        assert any(x.startswith(f"  per joint  {arm} RMS ") for x in lines), lines
+
+
 def test_without_robot_data_the_bench_says_what_to_install() -> None:
     # a Python that cannot see example-robot-data: the bench skips with a one-line message
     code = ("import importlib.metadata as m, runpy, sys\n"
