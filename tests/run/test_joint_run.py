@@ -74,6 +74,10 @@ def test_every_arm_needs_its_joint_set_points(tmp_path: Path) -> None:
     assert found.message == ("a1.e.hold receives no joint set points (a record with "
                              "`q: float[n]`) from another subsystem")
     assert find_joint_rig(comp.system) == found
+    # rssmc run says so, at the device, instead of looking for the LWR4+ experiment
+    proc = rssmc("run", tmp_path / "arms.rssm", "-o", tmp_path / "out")
+    assert proc.returncode == 1 and "Traceback" not in proc.stderr
+    assert "arms.rssm:48:19: error[E870]: a1.e.hold receives no joint set points" in proc.stderr
     # the Panda example has one arm
     panda = compile_file(PANDA).system
     assert panda is not None
