@@ -16,8 +16,9 @@ The names below are imported when first used, so that a device module importing
 
 from __future__ import annotations
 
-import importlib
-from typing import TYPE_CHECKING, Any
+from typing import TYPE_CHECKING
+
+from rssm_dsl.lazy import lazy_names
 
 if TYPE_CHECKING:
     from rssm_dsl.interp.program import RunConfig, Runtime, build_runtime
@@ -27,9 +28,4 @@ __all__ = ["RunConfig", "RunResult", "Runtime", "SimOptions", "Simulator", "buil
 _MODULE = {"RunConfig": "program", "Runtime": "program", "build_runtime": "program",
            "RunResult": "scheduler", "SimOptions": "scheduler", "Simulator": "scheduler"}
 
-
-def __getattr__(name: str) -> Any:
-    module = _MODULE.get(name)
-    if module is None:
-        raise AttributeError(f"module {__name__!r} has no attribute {name!r}")
-    return getattr(importlib.import_module(f"rssm_dsl.interp.{module}"), name)
+__getattr__ = lazy_names(__name__, _MODULE)

@@ -12,8 +12,9 @@ uses ``invariants``) can be imported without loading the whole verifier.
 
 from __future__ import annotations
 
-import importlib
-from typing import TYPE_CHECKING, Any
+from typing import TYPE_CHECKING
+
+from rssm_dsl.lazy import lazy_names
 
 if TYPE_CHECKING:
     from rssm_dsl.verify.budget import Budget, LimitReached, Stop
@@ -48,9 +49,4 @@ _MODULES = {"Budget": "budget", "LimitReached": "budget", "Stop": "budget",
             "exit_code": "report", "render_json": "report", "render_text": "report",
             "step_text": "report", "VerifyOptions": "verifier", "verify": "verifier"}
 
-
-def __getattr__(name: str) -> Any:
-    module = _MODULES.get(name)
-    if module is None:
-        raise AttributeError(f"module {__name__!r} has no attribute {name!r}")
-    return getattr(importlib.import_module(f"rssm_dsl.verify.{module}"), name)
+__getattr__ = lazy_names(__name__, _MODULES)
