@@ -181,6 +181,7 @@ class DeviceRunner(Loop):
         outs = tuple(("buf", c.buffer) for c in self.spec.channels_out)
         sim = self.sim
         if sim is not None:
+            sim.check_alone(self.node)
             sim.publish()                  # time 0: the other nodes' timers start from it
         while True:
             if sim is None:

@@ -56,6 +56,14 @@ class SimClock:
         self.last_start: float | None = None
         self.late = 0                 # iterations that started a paced period late or more
 
+    def check_alone(self, node: Node) -> None:
+        """Refuse a second clock: another node publishing /clock (seen once discovered; the
+        devices' peers are matched by then)."""
+        others = node.count_publishers(CLOCK_TOPIC) - 1
+        if others > 0:
+            raise SetupError(f"{others} other node(s) publish {CLOCK_TOPIC}: with use_sim_time "
+                             "one simulating device per system can be the clock")
+
     def now_ns(self) -> int:
         return self.ns
 
