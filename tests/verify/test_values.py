@@ -195,7 +195,7 @@ def test_user_property_verdicts(text: str, tmp_path: Path) -> None:
 @pytest.mark.slow
 def test_state_invariants_of_the_handover_on_its_slice(tmp_path: Path) -> None:
     """Two invariants over the arm and the base, checked on the slice of their group with
-    stubborn sets that keep every move changing an atom visible (about a minute): one holds,
+    stubborn sets that keep every move changing an atom visible (two minutes): one holds,
     the other is violated (the base's clamp may time out while the arm releases, and the
     base docks again), and its firing sequence reaches such a state in the whole net."""
     text = (ROOT / "examples" / "verify" / "handover.rssm").read_text(encoding="utf-8")
