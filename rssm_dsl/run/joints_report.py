@@ -15,13 +15,19 @@ import numpy as np
 from rssm_dsl.run.joints import JointTracking
 
 
-def _run_dict(r: JointTracking) -> dict[str, Any]:
-    """The run's figures, shared by its arms."""
+def _us_per_step(r: JointTracking, arms: int) -> float:
+    """Wall-clock time per step of one arm's device (every arm steps as often)."""
+    steps = r.device_steps * arms
+    return r.wall / steps * 1e6 if steps else float("nan")
+
+
+def _run_dict(r: JointTracking, arms: int = 1) -> dict[str, Any]:
+    """The run's figures, shared by its ``arms`` arms (``device_steps``: per arm)."""
     return {
         "reason": r.reason, "message": r.message,
         "simulated_s": r.simulated, "wall_s": r.wall, "cpu_s": r.cpu,
         "real_time_factor": r.simulated / r.wall if r.wall > 0 else None,
-        "us_per_device_step": r.us_per_step, "device_steps": r.device_steps,
+        "us_per_device_step": _us_per_step(r, arms), "device_steps": r.device_steps,
         "firings": r.firings,
     }
 
@@ -47,7 +53,7 @@ def arms_summary_dict(runs: Sequence[JointTracking]) -> dict[str, Any]:
     """summary.json: a one-arm run's, or the run's figures and ``arms``, one entry each."""
     if len(runs) == 1:
         return joint_summary_dict(runs[0])
-    return _run_dict(runs[0]) | {"arms": [_arm_dict(r) for r in runs]}
+    return _run_dict(runs[0], len(runs)) | {"arms": [_arm_dict(r) for r in runs]}
 
 
 def joint_trajectory_csv(r: JointTracking) -> str:
@@ -183,10 +189,8 @@ def arms_summary_text(runs: Sequence[JointTracking], system: str) -> str:
     lines.append(f"  simulated  {r.simulated:.3f} s: {r.device_steps} device steps{per_arm}, "
                  f"{r.firings:,} firings ({r.message})")
     rtf = r.simulated / r.wall if r.wall > 0 else float("inf")
-    steps = r.device_steps * len(runs)
-    us = r.wall / steps * 1e6 if steps else float("nan")
-    lines.append(f"  wall       {r.wall:.3f} s: {rtf:.1f}x real time, {us:.1f} us per device "
-                 "step")
+    lines.append(f"  wall       {r.wall:.3f} s: {rtf:.1f}x real time, "
+                 f"{_us_per_step(r, len(runs)):.1f} us per device step")
     for x in runs:
         lines += _tracking_lines(x, f"{x.rig.device} " if several else "")
     for x in runs:
