@@ -98,6 +98,13 @@ class Status:
 StatusCallback = Callable[[Status], None]
 
 
+@dataclass
+class Cap:
+    """What a capped first try did to the run (``Budget.capped``)."""
+
+    hit: bool = False      # the cap's deadline stopped something inside the try
+
+
 class Budget:
     """A deadline, a memory limit and a stop flag shared by every phase of one run."""
 
@@ -142,20 +149,24 @@ class Budget:
             self._reported_states = outer_states
 
     @contextmanager
-    def capped(self, seconds: float) -> Iterator[Budget]:
+    def capped(self, seconds: float) -> Iterator[Cap]:
         """A shorter deadline for what runs inside (a first try); reaching it is not the
-        run's stop: afterwards the run's own deadline holds again and its stop is cleared."""
+        run's stop: afterwards the run's own deadline holds again and its stop is cleared.
+        The yielded ``Cap`` tells, once the block is left, whether the cap cut the try short
+        (whatever the try reports then is partial, though its search may be complete)."""
         saved = self.deadline
         cap = time.monotonic() + seconds
         if saved is None or cap < saved:
             self.deadline = cap
+        outcome = Cap()
         try:
-            yield self
+            yield outcome
         finally:
             self.deadline = saved
             if (self.stop is not None and self.stop.kind == TIME
                     and (saved is None or time.monotonic() < saved)):
                 self.stop = None
+                outcome.hit = True
 
     def elapsed(self) -> float:
         return time.monotonic() - self.start

@@ -118,11 +118,11 @@ def _by_deadlocks(sl: Slice, quick: VerifyOptions, budget: Budget,
             if opts is composed and len(sl.keep) == 1:
                 continue            # one subsystem: no races for the stubborn sets to lose
             left = budget.remaining()
-            with budget.capped(COMPOSE_SHARE * left if left is not None else float("inf")):
+            with budget.capped(COMPOSE_SHARE * left if left is not None else float("inf")) as cap:
                 r = verify(sl.net, opts)
             notes = (*notes, *r.notes)
-            if budget.stop is not None or (r.complete and r.verdict is not Verdict.VIOLATED) \
-                    or r.deadlocks:
+            if budget.stop is not None or r.deadlocks \
+                    or (r.complete and not cap.hit and r.verdict is not Verdict.VIOLATED):
                 break
         r = dataclasses.replace(r, notes=notes)
         if not r.invariants:

@@ -125,11 +125,14 @@ def verify(net: FlatNet, options: VerifyOptions | None = None) -> VerifyReport:
                       else Budget(opts.time_limit, opts.max_memory))
             # a small net is explored whole (its dead transitions and unreachable behaviours
             # come with it); a larger one group by group
-            with budget.capped(opts.slice_after_seconds):
+            with budget.capped(opts.slice_after_seconds) as first:
                 whole = verify(net, dataclasses.replace(opts, slicing=False, budget=budget,
                                                          reduction="off",
                                                          max_states=opts.slice_after_states))
-            if whole.complete or whole.verdict is Verdict.VIOLATED or budget.stop is not None:
+            # a violation found is one; a try the cap cut short (in its search, or after it
+            # in the invariants or the progress check) decides nothing else
+            if (whole.verdict is Verdict.VIOLATED or budget.stop is not None
+                    or (whole.complete and not first.hit)):
                 return dataclasses.replace(whole, stop=budget.stop)
             inner = dataclasses.replace(opts, slicing=False, budget=budget, reduction="on")
             left = budget.remaining()

@@ -185,3 +185,36 @@ def test_a_capped_first_try_is_not_the_runs_stop() -> None:
         time.sleep(0.1)
         assert short.poll() is not None
     assert short.stop is not None, "the run's own deadline is a stop"
+
+
+def test_a_first_try_cut_by_its_cap_is_not_the_verdict(monkeypatch: pytest.MonkeyPatch) -> None:
+    """"auto" first explores the whole net under a short cap (``slice_after_seconds``). On a
+    slow or loaded machine the exploration may finish inside the cap while the progress check
+    after it does not: that try decided nothing, and the run goes on (slices, then the whole
+    net) to a verdict instead of reporting "time limit of 300 s reached" after a second."""
+    from rssm_dsl.hpn.flatten import flatten
+    from rssm_dsl.pipeline import compile_file
+    from rssm_dsl.verify import VerifyOptions, verifier, verify
+    from rssm_dsl.verify.progress import check_progress
+    from rssm_dsl.verify.report import Verdict
+
+    comp = compile_file(EXAMPLES / "lwr4_circle.rssm")
+    assert comp.ok and comp.hpn is not None
+    net = flatten(comp.hpn)
+    real = check_progress
+    slowed: list[float] = []
+
+    def slow_first(*args: object, **kwargs: object) -> object:
+        budget = args[3]
+        assert isinstance(budget, Budget)
+        left = budget.remaining()
+        if not slowed and left is not None and left < 100:    # the first try, under its cap
+            slowed.append(left)
+            time.sleep(left + 0.05)          # a machine too slow for the cap
+        return real(*args, **kwargs)  # type: ignore[arg-type]
+
+    monkeypatch.setattr(verifier, "check_progress", slow_first)
+    report = verify(net, VerifyOptions(slice_after_seconds=3.0))
+    assert slowed, "the progress check of the capped first try ran"
+    assert report.verdict is Verdict.VERIFIED, report.why_undecided
+    assert report.stop is None
