@@ -36,7 +36,7 @@ from .bindings import load
 from .channels import ChannelSpec
 from .loop import Loop
 from .params import ParamSpec, SetupError, declare, read_params, runtime_params
-from .simclock import SimClock, is_simulation
+from .simclock import SimClock, is_simulation, wait_for_system
 
 EXIT_OK, EXIT_FAILED, EXIT_SETUP = 0, 1, 2
 
@@ -163,6 +163,7 @@ class DeviceRunner(Loop):
         self.steps = 0
         self.last_step: float | None = None
         self.sim: SimClock | None = None
+        self.system_nodes = 1                     # the clock waits for them (simclock.py)
 
     def keep_time(self, real_time_factor: float) -> None:
         """Be the clock of the simulated system (see runtime/simclock.py)."""
@@ -182,6 +183,7 @@ class DeviceRunner(Loop):
         sim = self.sim
         if sim is not None:
             sim.check_alone(self.node)
+            wait_for_system(self.node, self.system_nodes, self.spin)
             sim.publish()                  # time 0: the other nodes' timers start from it
         while True:
             if sim is None:
@@ -253,6 +255,10 @@ def run_device(spec: DeviceNodeSpec, args: list[str] | None = None) -> int:
         runner = DeviceRunner(node, executor, spec, impl, rt.rate_hz, rt.resend_period,
                               initial)
         factor = declare(node, "rssm.real_time_factor", 1.0)
+        nodes = declare(node, "rssm.system_nodes", 1)
+        if isinstance(nodes, bool) or not isinstance(nodes, int) or nodes < 1:
+            raise SetupError(f"parameter rssm.system_nodes must be an int >= 1, not {nodes!r}")
+        runner.system_nodes = nodes
         if runner.sim_time and is_simulation(impl):
             runner.keep_time(factor if isinstance(factor, int | float) else -1.0)
         code = runner.run()

@@ -12,6 +12,13 @@ late iteration starts at once but never less than one paced period after the pre
 so the other nodes always get their share of wall time; nothing waits for them (the
 communication modes stay as the specification says: a controller too slow for the chosen
 factor misses periods, and its node counts them as overruns).
+
+The clock starts once the system is up: every node on ``use_sim_time``, having matched its
+channels' peers, says so once on ``/rssm/ready`` (``announce_ready``), and the clock's device
+publishes time 0 and steps only when it has heard the other ``rssm.system_nodes - 1`` nodes
+(the generator writes the system's node count there). Without it a node still discovering
+its peers would miss the first periods: the LWR4+'s effector node, say, leaving the arm
+without torque for its first tens of milliseconds.
 """
 
 from __future__ import annotations
@@ -22,16 +29,49 @@ from collections.abc import Callable
 from rclpy.node import Node
 from rclpy.qos import DurabilityPolicy, HistoryPolicy, QoSProfile, ReliabilityPolicy
 from rosgraph_msgs.msg import Clock  # type: ignore[import-not-found]
+from std_msgs.msg import String  # type: ignore[import-not-found]
 
 from .channels import time_msg
 from .params import SetupError
 
 CLOCK_TOPIC = "/clock"
+READY_TOPIC = "/rssm/ready"
+# every node's one announcement stays for the clock's reader, however late it subscribes
+READY_QOS = QoSProfile(history=HistoryPolicy.KEEP_LAST, depth=1,
+                       reliability=ReliabilityPolicy.RELIABLE,
+                       durability=DurabilityPolicy.TRANSIENT_LOCAL)
+READY_LOG_EVERY = 5.0     # seconds between the clock's "waiting for" lines
 # reliable keeps the newest time for reliable readers too; rclpy's own reader (best effort,
 # depth 1) matches it
 CLOCK_QOS = QoSProfile(history=HistoryPolicy.KEEP_LAST, depth=1,
                        reliability=ReliabilityPolicy.RELIABLE,
                        durability=DurabilityPolicy.VOLATILE)
+
+
+def announce_ready(node: Node) -> object:
+    """Say once, on READY_TOPIC, that this node matched its peers (kept for late readers:
+    the returned publisher must live as long as the node)."""
+    pub = node.create_publisher(String, READY_TOPIC, READY_QOS)
+    pub.publish(String(data=node.get_fully_qualified_name()))
+    return pub
+
+
+def wait_for_system(node: Node, nodes: int, spin: Callable[[float], None]) -> None:
+    """Until the other ``nodes - 1`` nodes of the system announced that they are ready."""
+    me = node.get_fully_qualified_name()
+    heard: set[str] = set()
+    sub = node.create_subscription(String, READY_TOPIC, lambda m: heard.add(m.data), READY_QOS)
+    next_log = time.monotonic() + READY_LOG_EVERY
+    try:
+        while len(heard - {me}) < nodes - 1:
+            if time.monotonic() >= next_log:
+                node.get_logger().info(
+                    f"the clock waits for the system's nodes: {len(heard - {me})} of "
+                    f"{nodes - 1} ready ({', '.join(sorted(heard - {me})) or 'none yet'})")
+                next_log = time.monotonic() + READY_LOG_EVERY
+            spin(0.05)
+    finally:
+        node.destroy_subscription(sub)
 
 
 def is_simulation(impl: object) -> bool:
