@@ -183,7 +183,7 @@ class DeviceRunner(Loop):
         sim = self.sim
         if sim is not None:
             sim.check_alone(self.node)
-            wait_for_system(self.node, self.system_nodes, self.spin)
+            wait_for_system(self.node, self.system_nodes, sim, self.spin)
             sim.publish()                  # time 0: the other nodes' timers start from it
         while True:
             if sim is None:

@@ -17,7 +17,7 @@ from rclpy.node import Node
 
 from .channels import ChannelSpec, Inbox, Outbox
 from .params import SetupError, declare
-from .simclock import announce_ready
+from .simclock import ReadyAnnouncer
 
 WAIT_SLICE = 0.05          # seconds spun at a time while an operation waits
 Arrangement = tuple[Any, ...]     # ("buf", NAME) | ("seq", (...)) | ("par", (...))
@@ -36,7 +36,7 @@ class Loop:
         self.last_start: float | None = None
         self.period = 1.0 / rate_hz if rate_hz > 0 else 0.0
         self.sim_time = bool(node.get_parameter("use_sim_time").value)
-        self.ready_pub: object | None = None      # announce_ready's (on use_sim_time)
+        self.ready: ReadyAnnouncer | None = None   # on use_sim_time (simclock.py)
         self.clock = node.get_clock()
         self.timer = node.create_timer(self.period, self._on_tick) if self.period else None
         # the current iteration's tick on the node's ROS clock (ns): the stamp of what it sends
@@ -106,7 +106,7 @@ class Loop:
             missing = [box.spec for box in ends if not box.matched(observers)]
             if not missing:
                 if self.sim_time:
-                    self.ready_pub = announce_ready(self.node)
+                    self.ready = ReadyAnnouncer(self.node)
                 return
             if time.monotonic() >= next_log:
                 self.log.info("waiting for the peers of " + ", ".join(

@@ -14,7 +14,7 @@ communication modes stay as the specification says: a controller too slow for th
 factor misses periods, and its node counts them as overruns).
 
 The clock starts once the system is up: every node on ``use_sim_time``, having matched its
-channels' peers, says so once on ``/rssm/ready`` (``announce_ready``), and the clock's device
+channels' peers, says so on ``/rssm/ready`` (``ReadyAnnouncer``), and the clock's device
 publishes time 0 and steps only when it has heard the other ``rssm.system_nodes - 1`` nodes
 (the generator writes the system's node count there). Without it a node still discovering
 its peers would miss the first periods: the LWR4+'s effector node, say, leaving the arm
@@ -26,6 +26,8 @@ from __future__ import annotations
 import time
 from collections.abc import Callable
 
+from rclpy.clock import Clock as RosClock
+from rclpy.clock import ClockType
 from rclpy.node import Node
 from rclpy.qos import DurabilityPolicy, HistoryPolicy, QoSProfile, ReliabilityPolicy
 from rosgraph_msgs.msg import Clock  # type: ignore[import-not-found]
@@ -41,6 +43,7 @@ READY_QOS = QoSProfile(history=HistoryPolicy.KEEP_LAST, depth=1,
                        reliability=ReliabilityPolicy.RELIABLE,
                        durability=DurabilityPolicy.TRANSIENT_LOCAL)
 READY_LOG_EVERY = 5.0     # seconds between the clock's "waiting for" lines
+READY_REPEAT = 0.25       # seconds between a waiting node's announcements
 # reliable keeps the newest time for reliable readers too; rclpy's own reader (best effort,
 # depth 1) matches it
 CLOCK_QOS = QoSProfile(history=HistoryPolicy.KEEP_LAST, depth=1,
@@ -48,26 +51,43 @@ CLOCK_QOS = QoSProfile(history=HistoryPolicy.KEEP_LAST, depth=1,
                        durability=DurabilityPolicy.VOLATILE)
 
 
-def announce_ready(node: Node) -> object:
-    """Say once, on READY_TOPIC, that this node matched its peers (kept for late readers:
-    the returned publisher must live as long as the node)."""
-    pub = node.create_publisher(String, READY_TOPIC, READY_QOS)
-    pub.publish(String(data=node.get_fully_qualified_name()))
-    return pub
+class ReadyAnnouncer:
+    """Says on READY_TOPIC that this node matched its peers: at once, then again every
+    READY_REPEAT wall-clock seconds until its simulated time starts (one announcement alone
+    was seen lost now and then between processes, leaving the clock waiting for good)."""
+
+    def __init__(self, node: Node) -> None:
+        self.node = node
+        self.pub = node.create_publisher(String, READY_TOPIC, READY_QOS)
+        self.msg = String(data=node.get_fully_qualified_name())
+        self.pub.publish(self.msg)
+        self.timer = node.create_timer(READY_REPEAT, self._again,
+                                       clock=RosClock(clock_type=ClockType.STEADY_TIME))
+
+    def _again(self) -> None:
+        if self.node.get_clock().now().nanoseconds > 0:     # the clock has started
+            self.timer.cancel()
+            return
+        self.pub.publish(self.msg)
 
 
-def wait_for_system(node: Node, nodes: int, spin: Callable[[float], None]) -> None:
-    """Until the other ``nodes - 1`` nodes of the system announced that they are ready."""
+def wait_for_system(node: Node, nodes: int, clock: SimClock,
+                    spin: Callable[[float], None]) -> None:
+    """Until the other ``nodes - 1`` nodes of the system announced that they are ready and
+    each one's ``/clock`` reader is matched with ``clock``'s writer (a node whose time source
+    has not found the clock yet would sleep through the first periods)."""
     me = node.get_fully_qualified_name()
     heard: set[str] = set()
     sub = node.create_subscription(String, READY_TOPIC, lambda m: heard.add(m.data), READY_QOS)
     next_log = time.monotonic() + READY_LOG_EVERY
     try:
-        while len(heard - {me}) < nodes - 1:
+        while (len(heard - {me}) < nodes - 1
+               or clock.pub.get_subscription_count() < nodes - 1):
             if time.monotonic() >= next_log:
                 node.get_logger().info(
                     f"the clock waits for the system's nodes: {len(heard - {me})} of "
-                    f"{nodes - 1} ready ({', '.join(sorted(heard - {me})) or 'none yet'})")
+                    f"{nodes - 1} ready ({', '.join(sorted(heard - {me})) or 'none yet'}), "
+                    f"{clock.pub.get_subscription_count()} reading {CLOCK_TOPIC}")
                 next_log = time.monotonic() + READY_LOG_EVERY
             spin(0.05)
     finally:
