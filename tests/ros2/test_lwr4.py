@@ -77,7 +77,11 @@ def test_lwr4_circle_on_ros2_tracks_as_the_interpreter_does(
     print(f"lwr4_circle: interpreter RMS {interp.metrics.rms_error * 1e3:.3f} mm, ROS 2 RMS "
           f"{ros.metrics.rms_error * 1e3:.3f} mm (ratio {ratio:.3f}); nodes {t_ros:.1f} s "
           f"wall at real-time factor {REAL_TIME_FACTOR}")
-    assert 0.9 <= ratio <= 1.1, (ros.metrics, interp.metrics)
+    # within 10 % above; below, the nodes' regular interleaving tracks better than the
+    # interpreter's seeded ones (docs/ros2.md, "The LWR4+ on ROS 2"): 0.90 to 0.99 seen, the
+    # lower the quieter the machine, so the floor leaves room under 0.9 (a node that slept
+    # through the start gave 1.6 to 4)
+    assert 0.85 <= ratio <= 1.1, (ros.metrics, interp.metrics)
 
 
 @pytest.mark.parametrize("missing", ["mujoco", "pinocchio"])
