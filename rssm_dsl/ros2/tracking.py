@@ -31,7 +31,8 @@ class Recording:
 
 
 def load(path: Path) -> Recording:
-    rows = [json.loads(line) for line in path.read_text(encoding="utf-8").splitlines() if line]
+    # JSON lines: records end at "\n" (json escapes it inside one; a U+2028 is no line end)
+    rows = [json.loads(line) for line in path.read_text(encoding="utf-8").split("\n") if line]
     by_time = sorted(rows, key=lambda r: (r["t"], r.get("seq", 0)))
     return Recording([r for r in by_time if r["kind"] == "setpoint"],
                      [r for r in by_time if r["kind"] == "state"],
