@@ -11,6 +11,20 @@ ROOT = Path(__file__).resolve().parent.parent
 EXAMPLES = ROOT / "examples"
 
 
+LONG = "RSSM_LONG_TESTS"
+
+
+def pytest_collection_modifyitems(config: pytest.Config, items: list[pytest.Item]) -> None:
+    """Cases marked ``long`` (over a minute each, with a faster variant that always runs)
+    run only with RSSM_LONG_TESTS=1, so that CI's whole suite stays under 20 minutes."""
+    if os.environ.get(LONG):
+        return
+    skip = pytest.mark.skip(reason=f"a long case (its fast variant runs); {LONG}=1 runs it")
+    for item in items:
+        if "long" in item.keywords:
+            item.add_marker(skip)
+
+
 def pytest_addoption(parser: pytest.Parser) -> None:
     parser.addoption("--update-goldens", action="store_true", default=False,
                      help="rewrite golden files from the current output (never in CI)")

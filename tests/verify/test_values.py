@@ -192,7 +192,8 @@ def test_user_property_verdicts(text: str, tmp_path: Path) -> None:
                        for m in cx.marking), cx.marking
 
 
-@pytest.mark.slow
+@pytest.mark.long   # 100 s; fast variants: tests/robots/test_handover.py's invariants and
+#                      broken protocols (state invariants over tracked values, 3 s each)
 def test_state_invariants_of_the_handover_on_its_slice(tmp_path: Path) -> None:
     """Two invariants over the arm and the base, checked on the slice of their group with
     stubborn sets that keep every move changing an atom visible (two minutes): one holds,
