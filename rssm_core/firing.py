@@ -29,8 +29,9 @@ Only the standard library is used.
 from __future__ import annotations
 
 from collections.abc import Iterable, Sequence, Set
-from dataclasses import dataclass
 from typing import Protocol
+
+from rssm_core.records import dataclass
 
 Marking = frozenset[int]
 

@@ -18,9 +18,10 @@ sample is acknowledged.
 
 from __future__ import annotations
 
-from dataclasses import dataclass
 from enum import Enum
 from typing import assert_never
+
+from rssm_core.records import dataclass
 
 
 class Mode(str, Enum):

@@ -23,10 +23,12 @@ from __future__ import annotations
 
 import json
 from collections.abc import Sequence
-from dataclasses import dataclass, field
+from dataclasses import field
 from fnmatch import fnmatchcase
 from pathlib import Path
 from typing import Any
+
+from rssm_core.records import dataclass
 
 SERIES_FORMAT = 1
 

@@ -56,9 +56,11 @@ import json
 import threading
 import time
 from collections.abc import Callable, Iterable, Iterator, Mapping
-from dataclasses import dataclass, field
+from dataclasses import field
 from pathlib import Path
 from typing import Any, BinaryIO, ClassVar, TypeVar
+
+from rssm_core.records import dataclass
 
 from .values import to_json
 

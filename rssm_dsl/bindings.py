@@ -28,11 +28,11 @@ import inspect
 import sys
 import threading
 from collections.abc import Callable, Sequence
-from dataclasses import dataclass
 from pathlib import Path
 from types import ModuleType
 from typing import Any
 
+from rssm_core.records import dataclass
 from rssm_dsl.extras import hint_for
 from rssm_dsl.resources import stdlib_dir
 

@@ -5,10 +5,10 @@ from __future__ import annotations
 import gc
 from collections.abc import Iterator
 from contextlib import contextmanager
-from dataclasses import dataclass
 from pathlib import Path
 from typing import TYPE_CHECKING
 
+from rssm_core.records import dataclass
 from rssm_dsl.diagnostics import Diagnostic, DiagnosticBag
 from rssm_dsl.semantics.analyze import AgentMemo, analyze
 from rssm_dsl.semantics.loader import Loader, Program

@@ -27,8 +27,9 @@ from __future__ import annotations
 
 import math
 from collections.abc import Callable, Mapping
-from dataclasses import dataclass, field
+from dataclasses import field
 
+from rssm_core.records import dataclass
 from rssm_dsl.diagnostics import DiagnosticBag
 from rssm_dsl.semantics.model import Extern
 from rssm_dsl.semantics.typecheck import BUILTIN_CONSTS, ExprChecker, Scope, Symbol

@@ -16,7 +16,9 @@ from __future__ import annotations
 import bisect
 import re
 import unicodedata
-from dataclasses import dataclass, field
+from dataclasses import field
+
+from rssm_core.records import dataclass
 
 _BARE_CR = re.compile(r"\r(?!\n)")
 

@@ -3,8 +3,9 @@ checks that both agree)."""
 
 from __future__ import annotations
 
-from dataclasses import dataclass
 from enum import Enum
+
+from rssm_core.records import dataclass
 
 
 class Severity(str, Enum):

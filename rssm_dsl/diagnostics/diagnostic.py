@@ -10,9 +10,10 @@ full by every diagnostic that names it.
 from __future__ import annotations
 
 import re
-from dataclasses import dataclass, field
+from dataclasses import field
 from typing import Any
 
+from rssm_core.records import dataclass
 from rssm_dsl.diagnostics.codes import BY_CODE, Severity
 from rssm_dsl.source import Span, escape_controls
 

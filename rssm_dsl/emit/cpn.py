@@ -28,8 +28,9 @@ given after every page is written; they are filled into slots kept for them.
 
 from __future__ import annotations
 
-from dataclasses import dataclass, field
+from dataclasses import field
 
+from rssm_core.records import dataclass
 from rssm_dsl.emit.xmltext import Indents, attr, leaf
 from rssm_dsl.filenames import file_name
 from rssm_dsl.hpn.ir import HPN, Arc, HpnIndex, Page, Transition

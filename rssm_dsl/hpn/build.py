@@ -9,9 +9,10 @@ rssm_core.modes (send_net / receive_net).
 from __future__ import annotations
 
 from collections.abc import Sequence
-from dataclasses import dataclass, field, replace
+from dataclasses import field, replace
 
 from rssm_core.modes import Slot, Step, receive_net, send_net
+from rssm_core.records import dataclass
 from rssm_dsl.hpn import names as N
 from rssm_dsl.hpn.flat import Role
 from rssm_dsl.hpn.ir import (

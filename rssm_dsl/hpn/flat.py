@@ -8,11 +8,12 @@ elements it came from, its name in the paper's notation and the span of the user
 
 from __future__ import annotations
 
-from dataclasses import dataclass, field
+from dataclasses import field
 from enum import Enum
 from functools import cached_property
 
 from rssm_core.firing import Net
+from rssm_core.records import dataclass
 from rssm_dsl.source import Span
 
 

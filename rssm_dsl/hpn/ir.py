@@ -24,10 +24,11 @@ simulation; they are not part of H.
 from __future__ import annotations
 
 from collections.abc import Iterable
-from dataclasses import dataclass, field
+from dataclasses import field
 from enum import Enum
 from typing import Any, ClassVar, NamedTuple, SupportsIndex, TypeVar
 
+from rssm_core.records import dataclass
 from rssm_dsl.hpn.flat import Role
 from rssm_dsl.source import Span
 

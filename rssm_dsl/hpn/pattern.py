@@ -16,8 +16,7 @@ with one page before and one after it puts them in sequence.
 
 from __future__ import annotations
 
-from dataclasses import dataclass
-
+from rssm_core.records import dataclass
 from rssm_dsl.hpn.ir import HPN, CondKind, HpnIndex, OpKind, Page, PageKind
 from rssm_dsl.semantics.model import Arrangement, ArrLeaf, ArrPar, ArrSeq
 

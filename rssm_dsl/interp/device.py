@@ -17,10 +17,11 @@ A simulator such as the MuJoCo LWR4+ fits as: ``receive("torque", tau)`` stores 
 from __future__ import annotations
 
 from collections.abc import Mapping
-from dataclasses import dataclass, field
+from dataclasses import field
 from pathlib import Path
 from typing import Any, Protocol, runtime_checkable
 
+from rssm_core.records import dataclass
 from rssm_dsl.semantics.types import Type
 
 

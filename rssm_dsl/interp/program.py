@@ -28,11 +28,12 @@ from __future__ import annotations
 import functools
 from collections import defaultdict
 from collections.abc import Callable
-from dataclasses import dataclass, field
+from dataclasses import field
 from fnmatch import fnmatchcase
 from pathlib import Path
 from typing import Any
 
+from rssm_core.records import dataclass
 from rssm_dsl.bindings import BindingError, binding_dirs, callable_arity_problem, resolve
 from rssm_dsl.diagnostics import Diagnostic, Related
 from rssm_dsl.hpn.flat import FlatNet, FlatPlace, FlatTransition

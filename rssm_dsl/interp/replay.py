@@ -24,11 +24,12 @@ marking reached; an unsafe firing: the last step double-marks a place).
 from __future__ import annotations
 
 import json
-from dataclasses import dataclass, field
+from dataclasses import field
 from pathlib import Path
 from typing import Any
 
 from rssm_core.firing import Net, NotEnabled
+from rssm_core.records import dataclass
 from rssm_core.trace import TraceFormatError, parse_trace
 from rssm_dsl.diagnostics import Diagnostic
 from rssm_dsl.hpn.flat import FlatNet, Role

@@ -23,10 +23,11 @@ import random
 import time
 from collections.abc import Callable
 from concurrent.futures import ThreadPoolExecutor
-from dataclasses import dataclass, field
+from dataclasses import field
 from heapq import heappop, heappush
 from typing import Any
 
+from rssm_core.records import dataclass
 from rssm_core.trace import SOURCE_INTERPRETER, start_event
 from rssm_dsl.diagnostics import Diagnostic, Related
 from rssm_dsl.hpn.flat import Role

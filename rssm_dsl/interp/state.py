@@ -11,10 +11,11 @@ new(x) for it.
 from __future__ import annotations
 
 from collections.abc import Callable
-from dataclasses import dataclass, field
+from dataclasses import field
 from typing import Any
 
 from rssm_core.iteration import NewFlags, end_conditions
+from rssm_core.records import dataclass
 from rssm_dsl.interp.clock import Ticker
 from rssm_dsl.interp.device import Device as DeviceImpl
 from rssm_dsl.interp.errors import EvalError

@@ -4,9 +4,9 @@ and as text (:func:`render`), shown live while the run goes and once at its end.
 
 from __future__ import annotations
 
-from dataclasses import dataclass
 from typing import TYPE_CHECKING, Any
 
+from rssm_core.records import dataclass
 from rssm_dsl.interp.values import short
 
 if TYPE_CHECKING:

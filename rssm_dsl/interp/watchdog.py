@@ -18,8 +18,9 @@ waits for (the places its next transition misses: a buffer of a peer, with its s
 
 from __future__ import annotations
 
-from dataclasses import dataclass
 from typing import TYPE_CHECKING
+
+from rssm_core.records import dataclass
 
 if TYPE_CHECKING:   # the command line reads STALL_PERIODS without loading the interpreter
     from rssm_dsl.interp.program import Runtime

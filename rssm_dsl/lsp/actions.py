@@ -15,10 +15,10 @@ example of examples/diagnostics/ and to mutations of them).
 from __future__ import annotations
 
 import re
-from dataclasses import dataclass
 
 from lsprotocol import types as lsp
 
+from rssm_core.records import dataclass
 from rssm_dsl.lsp.index import block_close, subsystem_key, system_id
 from rssm_dsl.lsp.positions import LineIndex, line_end, line_start
 from rssm_dsl.semantics.behaviours import (

@@ -17,9 +17,10 @@ import logging
 import threading
 from collections.abc import Callable, Iterator
 from contextlib import contextmanager
-from dataclasses import dataclass, field, replace
+from dataclasses import field, replace
 from pathlib import Path
 
+from rssm_core.records import dataclass
 from rssm_dsl.diagnostics import Diagnostic, DiagnosticBag, Severity
 from rssm_dsl.lsp.incremental import Reparsed, ShiftMap, State, map_diagnostic, map_module, reparse
 from rssm_dsl.lsp.index import Occurrence, SymbolIndex, build_index, system_id

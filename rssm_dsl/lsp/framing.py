@@ -25,8 +25,9 @@ import logging
 import re
 import threading
 from collections.abc import Callable
-from dataclasses import dataclass
 from typing import Any, Protocol
+
+from rssm_core.records import dataclass
 
 log = logging.getLogger("rssmc.lsp")
 

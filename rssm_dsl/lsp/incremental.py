@@ -24,10 +24,10 @@ import dataclasses
 import itertools
 import re
 from collections.abc import Callable
-from dataclasses import dataclass
 from enum import Enum
 from typing import Any
 
+from rssm_core.records import dataclass
 from rssm_dsl.diagnostics import Diagnostic, Related
 from rssm_dsl.lsp.index import block_close, block_end
 from rssm_dsl.lsp.positions import count_lines

@@ -33,9 +33,10 @@ from __future__ import annotations
 import logging
 import re
 from collections.abc import Iterator
-from dataclasses import dataclass, field
+from dataclasses import field
 from pathlib import Path
 
+from rssm_core.records import dataclass
 from rssm_dsl.lsp.positions import line_start
 from rssm_dsl.semantics.loader import Program, _candidates, display_path
 from rssm_dsl.semantics.typecheck import BUILTIN_CONSTS, BUILTIN_FUNCTIONS

@@ -17,10 +17,11 @@ from __future__ import annotations
 
 import bisect
 import re
-from dataclasses import dataclass, field
+from dataclasses import field
 
 from lsprotocol import types as lsp
 
+from rssm_core.records import dataclass
 from rssm_dsl.source import Span, line_starts
 
 UTF8, UTF16, UTF32 = "utf-8", "utf-16", "utf-32"

@@ -22,8 +22,8 @@ from __future__ import annotations
 import bisect
 import itertools
 from collections.abc import Callable, Sequence
-from dataclasses import dataclass
 
+from rssm_core.records import dataclass
 from rssm_dsl.lsp.incremental import ShiftMap
 from rssm_dsl.lsp.index import Definition, IndexBuilder, Occurrence, Scope, SymbolIndex
 from rssm_dsl.semantics.loader import Program

@@ -19,9 +19,9 @@ from __future__ import annotations
 import re
 from collections import Counter
 from collections.abc import Callable, Iterable
-from dataclasses import dataclass
 from pathlib import Path
 
+from rssm_core.records import dataclass
 from rssm_dsl.diagnostics import Diagnostic, DiagnosticBag
 from rssm_dsl.lsp.index import BUILTIN_NAMES, Definition, Occurrence, SymbolIndex, build_index
 from rssm_dsl.lsp.paths import is_stdlib, path_of_display

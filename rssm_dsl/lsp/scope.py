@@ -18,8 +18,9 @@ from __future__ import annotations
 
 import re
 from collections.abc import Iterator
-from dataclasses import dataclass, field
+from dataclasses import field
 
+from rssm_core.records import dataclass
 from rssm_dsl.diagnostics import DiagnosticBag
 from rssm_dsl.semantics.declarations import DeclarationPass, Globals
 from rssm_dsl.semantics.loader import Program

@@ -9,12 +9,12 @@ from __future__ import annotations
 import json
 import re
 from collections.abc import Callable, Iterable
-from dataclasses import dataclass
 from typing import Any, TypeVar
 
 from lsprotocol import types as lsp
 from pygls.protocol import default_converter
 
+from rssm_core.records import dataclass
 from rssm_dsl.lsp.positions import LineIndex
 from rssm_dsl.source import Span
 from rssm_dsl.syntax import ast

@@ -20,13 +20,13 @@ import base64
 import hashlib
 import json
 import math
-from dataclasses import dataclass
 from importlib import resources
 from typing import Any
 
 from jinja2 import Environment, PackageLoader, StrictUndefined
 from markupsafe import Markup
 
+from rssm_core.records import dataclass
 from rssm_dsl import __version__
 from rssm_dsl.emit.json_ir import to_json
 from rssm_dsl.emit.order import pages_in_order

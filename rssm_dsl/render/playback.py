@@ -33,10 +33,11 @@ from __future__ import annotations
 
 import json
 from collections.abc import Iterable, Iterator
-from dataclasses import dataclass, field
+from dataclasses import field
 from pathlib import Path
 from typing import Any
 
+from rssm_core.records import dataclass
 from rssm_core.trace import Fire, TraceFormatError, iter_events
 from rssm_dsl.diagnostics import DiagnosticBag
 from rssm_dsl.hpn.flat import FlatNet

@@ -18,13 +18,13 @@ another system, W859 more series than the explorer draws.
 from __future__ import annotations
 
 import math
-from dataclasses import dataclass
 from itertools import pairwise
 from pathlib import Path
 from typing import Any
 
 import numpy as np
 
+from rssm_core.records import dataclass
 from rssm_core.series import Series, SeriesFormatError, read_series, select_series
 from rssm_dsl.diagnostics import DiagnosticBag
 from rssm_dsl.run.series_plot import rows_of

@@ -10,8 +10,8 @@ from __future__ import annotations
 
 import shutil
 import subprocess
-from dataclasses import dataclass
 
+from rssm_core.records import dataclass
 from rssm_dsl.emit.dot import page_attrs, place_attrs, quote, transition_attrs
 from rssm_dsl.emit.order import pages_in_order
 from rssm_dsl.hpn.ir import HPN, Page

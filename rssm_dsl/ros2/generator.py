@@ -26,13 +26,13 @@ what. Templates see only :mod:`rssm_dsl.ros2.viewmodel` records.
 
 from __future__ import annotations
 
-from dataclasses import dataclass
 from pathlib import Path
 from typing import Any
 from xml.sax.saxutils import escape
 
 from jinja2 import Environment, PackageLoader, StrictUndefined
 
+from rssm_core.records import dataclass
 from rssm_dsl.diagnostics import Diagnostic
 from rssm_dsl.emit.write import write_outputs
 from rssm_dsl.filenames import file_name

@@ -41,9 +41,11 @@ import sys
 import time
 import types
 from collections.abc import Sequence
-from dataclasses import dataclass, field
+from dataclasses import field
 from pathlib import Path
 from typing import Any
+
+from rssm_core.records import dataclass
 
 NODE_ARGS = {"package", "executable", "name", "namespace", "parameters", "arguments",
              "remappings", "output"}

@@ -29,8 +29,8 @@ producers get ``Ack`` (``epoch``, ``seq``) back; every subsystem publishes
 from __future__ import annotations
 
 import re
-from dataclasses import dataclass
 
+from rssm_core.records import dataclass
 from rssm_dsl.pycode import tuple_source
 from rssm_dsl.ros2.names import pascal
 from rssm_dsl.semantics.types import INT, ArrayT, EnumT, RangeT, RecordT, Scalar, Type

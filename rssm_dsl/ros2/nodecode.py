@@ -8,12 +8,12 @@ specification reach the code only mangled or inside ``repr`` string literals.
 from __future__ import annotations
 
 from collections.abc import Callable, Mapping
-from dataclasses import dataclass
 from typing import Any
 
 import numpy as np
 
 from rssm_core.modes import pairing
+from rssm_core.records import dataclass
 from rssm_dsl.hpn.ir import HPN, PageKind
 from rssm_dsl.hpn.pattern import Compute, Increment, Receive, Send, iteration
 from rssm_dsl.pycode import (

@@ -16,10 +16,11 @@ installed with it (setup.py lists them)."""
 
 from __future__ import annotations
 
-from dataclasses import dataclass, field
+from dataclasses import field
 from pathlib import Path
 
 import rssm_core
+from rssm_core.records import dataclass
 from rssm_dsl.bindings import STDLIB_PACKAGE, BindingError, find_module
 from rssm_dsl.resources import stdlib_dir
 

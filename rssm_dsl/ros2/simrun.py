@@ -16,9 +16,9 @@ import signal
 import subprocess
 import sys
 import time
-from dataclasses import dataclass
 from pathlib import Path
 
+from rssm_core.records import dataclass
 from rssm_dsl.ros2 import toolchain, tracking
 from rssm_dsl.ros2.generator import Workspace
 from rssm_dsl.run.metrics import Metrics

@@ -25,9 +25,9 @@ from __future__ import annotations
 import re
 import tomllib
 from collections.abc import Callable
-from dataclasses import dataclass
 from pathlib import Path
 
+from rssm_core.records import dataclass
 from rssm_dsl.diagnostics import Diagnostic
 from rssm_dsl.pycode import tuple_source
 from rssm_dsl.semantics.loader import display_path

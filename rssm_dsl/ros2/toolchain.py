@@ -28,8 +28,9 @@ import subprocess
 import sys
 from collections.abc import Iterator, Mapping
 from contextlib import contextmanager
-from dataclasses import dataclass
 from pathlib import Path
+
+from rssm_core.records import dataclass
 
 REQUIREMENTS = Path(__file__).resolve().with_name("requirements-jazzy.txt")
 # MuJoCo and Pinocchio, for workspaces whose nodes simulate an arm (ensure_extra)

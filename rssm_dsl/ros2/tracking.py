@@ -13,12 +13,12 @@ interpreter's run stops there too).
 from __future__ import annotations
 
 import json
-from dataclasses import dataclass
 from pathlib import Path
 from typing import Any
 
 import numpy as np
 
+from rssm_core.records import dataclass
 from rssm_dsl.run.metrics import Metrics, measure
 from rssm_dsl.run.recorder import Samples, SwitchEvent
 

@@ -6,12 +6,12 @@ Templates never see the IR or the semantic model; every name in here has been ch
 from __future__ import annotations
 
 import math
-from dataclasses import dataclass
 from pathlib import Path
 from typing import Any
 
 import numpy as np
 
+from rssm_core.records import dataclass
 from rssm_dsl.bindings import binding_dirs
 from rssm_dsl.hpn.ir import HPN
 from rssm_dsl.interp.initial import InitialValues

@@ -7,10 +7,11 @@ from __future__ import annotations
 
 import time
 from collections.abc import Callable
-from dataclasses import dataclass, field
+from dataclasses import field
 from pathlib import Path
 from typing import Any
 
+from rssm_core.records import dataclass
 from rssm_dsl.bindings import BindingError, resolve
 from rssm_dsl.diagnostics import Diagnostic
 from rssm_dsl.pipeline import Compilation

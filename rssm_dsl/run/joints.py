@@ -18,13 +18,13 @@ joints_report.py); ``bench/panda.py`` for its figures.
 from __future__ import annotations
 
 import time
-from dataclasses import dataclass
 from pathlib import Path
 from typing import Any
 
 import numpy as np
 from numpy.typing import NDArray
 
+from rssm_core.records import dataclass
 from rssm_dsl.diagnostics import Diagnostic
 from rssm_dsl.pipeline import Compilation
 from rssm_dsl.semantics.model import Device, System

@@ -3,11 +3,11 @@
 from __future__ import annotations
 
 import math
-from dataclasses import dataclass
 
 import numpy as np
 from numpy.typing import NDArray
 
+from rssm_core.records import dataclass
 from rssm_dsl.run.recorder import Samples
 
 FloatArray = NDArray[np.float64]

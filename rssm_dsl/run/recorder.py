@@ -19,12 +19,12 @@ subsystem (the experiment's cw -> ccw -> cw) it raises the interpreter's
 from __future__ import annotations
 
 from collections.abc import Callable
-from dataclasses import dataclass
 from typing import Any
 
 import numpy as np
 from numpy.typing import NDArray
 
+from rssm_core.records import dataclass
 from rssm_dsl.interp.errors import StopSimulation
 
 FloatArray = NDArray[np.float64]

@@ -6,8 +6,7 @@ produces them (the control subsystem c of the paper)."""
 
 from __future__ import annotations
 
-from dataclasses import dataclass
-
+from rssm_core.records import dataclass
 from rssm_dsl.diagnostics import Diagnostic
 from rssm_dsl.semantics.model import Channel, Device, Subsystem, System
 from rssm_dsl.semantics.types import BOOL, FLOAT, ArrayT, RecordT, Type

@@ -17,12 +17,12 @@ import math
 import os
 import sys
 import tempfile
-from dataclasses import dataclass
 from pathlib import Path
 from typing import TYPE_CHECKING, Any
 
 import numpy as np
 
+from rssm_core.records import dataclass
 from rssm_dsl.extras import install_command
 
 if TYPE_CHECKING:

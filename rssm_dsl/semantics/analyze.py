@@ -3,8 +3,9 @@
 from __future__ import annotations
 
 import threading
-from dataclasses import dataclass, field, replace
+from dataclasses import field, replace
 
+from rssm_core.records import dataclass
 from rssm_dsl.diagnostics import Diagnostic, DiagnosticBag, Related
 from rssm_dsl.semantics.behaviours import BehaviourPass
 from rssm_dsl.semantics.channels import ChannelPass

@@ -4,9 +4,10 @@ switches of the subsystem layer."""
 
 from __future__ import annotations
 
-from dataclasses import dataclass, field
+from dataclasses import field
 from functools import cache
 
+from rssm_core.records import dataclass
 from rssm_dsl.diagnostics import DiagnosticBag, Related
 from rssm_dsl.semantics.declarations import Globals
 from rssm_dsl.semantics.model import (

@@ -5,8 +5,9 @@ from __future__ import annotations
 import re
 from collections.abc import Iterator
 from contextlib import contextmanager
-from dataclasses import dataclass, field
+from dataclasses import field
 
+from rssm_core.records import dataclass
 from rssm_dsl.diagnostics import DiagnosticBag, Related
 from rssm_dsl.semantics.model import Const, Extern
 from rssm_dsl.semantics.typecheck import (

@@ -12,9 +12,10 @@ import errno
 import os
 import re
 import stat
-from dataclasses import dataclass, field
+from dataclasses import field
 from pathlib import Path
 
+from rssm_core.records import dataclass
 from rssm_dsl.diagnostics import DiagnosticBag
 from rssm_dsl.filenames import MAX_NAME_LENGTH, is_file, name_problem
 from rssm_dsl.resources import stdlib_dir

@@ -8,9 +8,10 @@ each split into 2^nu data-availability cases.
 
 from __future__ import annotations
 
-from dataclasses import dataclass, field
+from dataclasses import field
 
 from rssm_core.modes import Mode, pairing
+from rssm_core.records import dataclass
 from rssm_dsl.semantics.types import Type
 from rssm_dsl.source import Span
 from rssm_dsl.syntax import ast

@@ -20,10 +20,11 @@ the same expression means in a behaviour; :func:`evaluate` is the one-shot form.
 from __future__ import annotations
 
 from collections.abc import Callable, Mapping
-from dataclasses import dataclass, replace
+from dataclasses import replace
 from typing import Any
 
 import rssm_core.values as rt
+from rssm_core.records import dataclass
 from rssm_dsl.diagnostics import DiagnosticBag, Related
 from rssm_dsl.semantics.model import Agent, Property, Subsystem, System
 from rssm_dsl.semantics.typecheck import (

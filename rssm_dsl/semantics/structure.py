@@ -2,9 +2,10 @@
 
 from __future__ import annotations
 
-from dataclasses import dataclass, field, replace
+from dataclasses import field, replace
 
 from rssm_core.modes import Mode
+from rssm_core.records import dataclass
 from rssm_dsl.diagnostics import DiagnosticBag, Related
 from rssm_dsl.semantics.declarations import DeclarationPass, Globals
 from rssm_dsl.semantics.model import DEVICE_LETTER, KIND_LETTER, Buffer, Variable

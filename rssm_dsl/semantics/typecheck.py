@@ -4,9 +4,10 @@ from __future__ import annotations
 
 import difflib
 from collections.abc import Callable, Iterable, Mapping
-from dataclasses import dataclass, field
+from dataclasses import field
 from typing import Protocol
 
+from rssm_core.records import dataclass
 from rssm_core.values import INT_MAX, INT_MIN
 from rssm_dsl.diagnostics import DiagnosticBag
 from rssm_dsl.semantics.model import Extern

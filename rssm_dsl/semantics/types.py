@@ -3,8 +3,9 @@ ranges), fixed-size arrays and records."""
 
 from __future__ import annotations
 
-from dataclasses import dataclass
 from typing import Any
+
+from rssm_core.records import dataclass
 
 
 @dataclass(frozen=True, slots=True)

@@ -2,10 +2,10 @@
 
 from __future__ import annotations
 
-from dataclasses import dataclass
 from enum import Enum
 
 from rssm_core.modes import Mode
+from rssm_core.records import dataclass
 from rssm_dsl.source import Span
 
 # ---------------------------------------------------------------- types

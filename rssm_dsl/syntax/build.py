@@ -14,12 +14,13 @@ import re
 import threading
 import warnings
 from collections.abc import Callable
-from dataclasses import dataclass, fields
+from dataclasses import fields
 from typing import Any, TypeVar
 
 from lark import Token
 
 from rssm_core.modes import Mode
+from rssm_core.records import dataclass
 from rssm_core.values import INT_MAX, INT_MIN
 from rssm_dsl.diagnostics import Diagnostic
 from rssm_dsl.source import SourceFile, Span

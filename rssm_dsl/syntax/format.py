@@ -20,12 +20,13 @@ without errors, so formatting never changes the meaning (or the IR) of a specifi
 
 from __future__ import annotations
 
-from dataclasses import dataclass, field
+from dataclasses import field
 from functools import cache
 
 from lark import Token
 from lark.exceptions import LarkError
 
+from rssm_core.records import dataclass
 from rssm_dsl.diagnostics import Diagnostic
 from rssm_dsl.source import SourceFile
 from rssm_dsl.syntax.parser import _lark, parse

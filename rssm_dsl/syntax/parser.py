@@ -21,7 +21,6 @@ from __future__ import annotations
 
 import re
 from collections.abc import Callable
-from dataclasses import dataclass
 from functools import cache, partial
 from typing import Any
 
@@ -32,6 +31,7 @@ from lark.parse_tree_builder import ChildFilterLALR_NoPlaceholders, ExpandSingle
 from lark.parsers.lalr_analysis import Shift
 from lark.parsers.lalr_parser_state import ParserState
 
+from rssm_core.records import dataclass
 from rssm_dsl.diagnostics import Diagnostic
 from rssm_dsl.resources import grammar_text
 from rssm_dsl.source import NOT_LINE_BREAKS, SourceFile, Span, describe_char

@@ -28,8 +28,9 @@ import subprocess
 import time
 from collections.abc import Callable, Iterator, Sequence
 from contextlib import contextmanager
-from dataclasses import dataclass
 from typing import Any
+
+from rssm_core.records import dataclass
 
 GB = 1 << 30
 MB = 1 << 20

@@ -17,10 +17,10 @@ from __future__ import annotations
 import importlib
 import tempfile
 import time
-from dataclasses import dataclass
 from pathlib import Path
 from typing import Any
 
+from rssm_core.records import dataclass
 from rssm_dsl.emit.cpn import hpn_cpn
 from rssm_dsl.hpn.ir import HPN
 from rssm_dsl.verify.datanet import tracked_hpn

@@ -48,8 +48,9 @@ from __future__ import annotations
 
 import dataclasses
 from collections.abc import Iterable
-from dataclasses import dataclass, field
+from dataclasses import field
 
+from rssm_core.records import dataclass
 from rssm_dsl.hpn.flat import FlatCondition, FlatNet, FlatPlace, FlatTransition
 from rssm_dsl.hpn.flatten import flatten
 from rssm_dsl.hpn.ir import HPN, Arc, FusionSet, Place

@@ -35,9 +35,10 @@ from __future__ import annotations
 
 import itertools
 from collections.abc import Callable, Iterable, Mapping, Sequence
-from dataclasses import dataclass, field
+from dataclasses import field
 from typing import Any
 
+from rssm_core.records import dataclass
 from rssm_dsl.hpn.flat import FlatNet
 from rssm_dsl.hpn.ir import CondKind, OpKind
 from rssm_dsl.interp.compile_expr import ExprCompiler

@@ -13,9 +13,9 @@ import shutil
 import subprocess
 import tempfile
 import time
-from dataclasses import dataclass
 from typing import TYPE_CHECKING
 
+from rssm_core.records import dataclass
 from rssm_dsl.hpn.flat import FlatNet
 from rssm_dsl.verify.budget import Budget, LimitReached, run_limited
 from rssm_dsl.verify.datanet import track_new

@@ -27,11 +27,12 @@ from __future__ import annotations
 
 import math
 import time
-from dataclasses import dataclass, field
+from dataclasses import field
 
 import numpy as np
 import numpy.typing as npt
 
+from rssm_core.records import dataclass
 from rssm_dsl.hpn.flat import FlatNet
 from rssm_dsl.verify.budget import Budget, LimitReached, format_size
 

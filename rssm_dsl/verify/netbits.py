@@ -16,12 +16,11 @@ the :class:`~rssm_core.firing.Net` of the flat net (``NetBits.rule``: its pre-se
 
 from __future__ import annotations
 
-from dataclasses import dataclass
-
 import numpy as np
 import numpy.typing as npt
 
 from rssm_core.firing import Net, NetError
+from rssm_core.records import dataclass
 from rssm_dsl.hpn.flat import FlatNet, Role
 
 U64 = npt.NDArray[np.uint64]

@@ -34,11 +34,11 @@ doing while ``s`` waits.
 from __future__ import annotations
 
 from collections.abc import Callable
-from dataclasses import dataclass
 
 import numpy as np
 import numpy.typing as npt
 
+from rssm_core.records import dataclass
 from rssm_dsl.hpn.flat import FlatNet, Role
 from rssm_dsl.verify.budget import Budget, LimitReached
 from rssm_dsl.verify.netbits import NetBits, bits, to_words

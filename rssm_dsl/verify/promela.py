@@ -34,9 +34,9 @@ import subprocess
 import tempfile
 import time
 from collections.abc import Sequence
-from dataclasses import dataclass
 from typing import TYPE_CHECKING
 
+from rssm_core.records import dataclass
 from rssm_dsl.hpn.flat import FlatNet, FlatTransition, Role
 from rssm_dsl.verify.budget import Budget, LimitReached, run_limited
 from rssm_dsl.verify.datanet import track_new, untracked

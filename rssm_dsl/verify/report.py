@@ -17,10 +17,11 @@ from __future__ import annotations
 
 import json
 import re
-from dataclasses import dataclass, field
+from dataclasses import field
 from enum import Enum
 from typing import Any
 
+from rssm_core.records import dataclass
 from rssm_dsl.hpn.flat import FlatNet, FlatTransition
 from rssm_dsl.source import Span
 from rssm_dsl.verify.budget import INTERRUPT, Stop, format_seconds, format_size

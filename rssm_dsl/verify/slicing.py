@@ -36,8 +36,8 @@ from __future__ import annotations
 
 import dataclasses
 from collections.abc import Sequence
-from dataclasses import dataclass
 
+from rssm_core.records import dataclass
 from rssm_dsl.hpn.flat import FlatNet, FlatPlace, FlatTransition, NewSites, Role
 
 

@@ -23,11 +23,12 @@ from __future__ import annotations
 
 import time
 from collections.abc import Callable
-from dataclasses import dataclass, field
+from dataclasses import field
 
 import numpy as np
 import numpy.typing as npt
 
+from rssm_core.records import dataclass
 from rssm_dsl.verify.budget import Budget, LimitReached
 from rssm_dsl.verify.netbits import NetBits, from_words, to_words
 

@@ -30,11 +30,11 @@ property undecided there: it is reported as not decided, never as holding.
 from __future__ import annotations
 
 from collections.abc import Sequence
-from dataclasses import dataclass
 from typing import Any
 
 import numpy as np
 
+from rssm_core.records import dataclass
 from rssm_dsl.hpn.flat import FlatNet, FlatTransition
 from rssm_dsl.semantics.model import Property, System
 from rssm_dsl.semantics.properties import Formula, InBehaviour, UnknownValue, Value

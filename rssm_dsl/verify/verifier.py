@@ -44,9 +44,9 @@ from __future__ import annotations
 import dataclasses
 import time
 from collections.abc import Collection
-from dataclasses import dataclass
 from typing import TYPE_CHECKING
 
+from rssm_core.records import dataclass
 from rssm_dsl.hpn.flat import FlatNet, FlatTransition
 from rssm_dsl.verify.budget import Budget
 from rssm_dsl.verify.compose.check import ComposeResult, compose_check

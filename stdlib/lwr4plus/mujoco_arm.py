@@ -9,12 +9,13 @@ the site position and velocity read by :meth:`MujocoLwr4.state` belong to the sa
 
 from __future__ import annotations
 
-from dataclasses import dataclass
 from pathlib import Path
 
 import mujoco  # type: ignore[import-untyped]
 import numpy as np
 from numpy.typing import NDArray
+
+from rssm_core.records import dataclass
 
 from .dynamics import EE_FRAME, MJCF_PATH
 

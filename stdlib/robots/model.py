@@ -35,12 +35,13 @@ import importlib.metadata
 import math
 import tomllib
 import xml.etree.ElementTree as ET
-from dataclasses import dataclass
 from pathlib import Path
 from typing import Any
 
 import numpy as np
 from numpy.typing import NDArray
+
+from rssm_core.records import dataclass
 
 Vector = NDArray[np.float64]
 

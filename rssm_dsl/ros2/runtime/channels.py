@@ -48,7 +48,6 @@ import struct
 import time
 from collections import OrderedDict
 from collections.abc import Callable, Iterator
-from dataclasses import dataclass
 from typing import Any
 
 import numpy as np
@@ -57,6 +56,7 @@ from rclpy.node import Node
 from rclpy.qos import DurabilityPolicy, HistoryPolicy, QoSProfile, ReliabilityPolicy
 
 from rssm_core.modes import Pairing, Rule, rule
+from rssm_core.records import dataclass
 from rssm_core.values import Desc
 
 from .messages import STAMPED_KINDS, from_msg, to_msg

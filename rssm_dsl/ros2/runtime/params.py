@@ -19,12 +19,12 @@ subsystem ended, so that late subscribers still get its last status) and ``rssm.
 from __future__ import annotations
 
 import array
-from dataclasses import dataclass
 from typing import Any
 
 from rcl_interfaces.msg import ParameterDescriptor
 from rclpy.node import Node
 
+from rssm_core.records import dataclass
 from rssm_core.values import ValueTypeError, converter, type_text
 
 

@@ -32,7 +32,6 @@ import os
 import sys
 import time
 from collections.abc import Callable, Generator, Iterator, Mapping
-from dataclasses import dataclass
 from pathlib import Path
 from typing import Any
 
@@ -42,6 +41,7 @@ from rclpy.node import Node
 from rclpy.qos import DurabilityPolicy, HistoryPolicy, QoSProfile, ReliabilityPolicy
 
 from rssm_core.iteration import Condition, NewFlags, end_conditions
+from rssm_core.records import dataclass
 from rssm_core.trace import SOURCE_NODE, TraceWriter, start_event
 from rssm_core.values import OperationError
 

@@ -3,8 +3,9 @@
 from __future__ import annotations
 
 from collections.abc import Callable
-from dataclasses import dataclass, field, replace
+from dataclasses import field, replace
 
+from rssm_core.records import dataclass
 from rssm_dsl.diagnostics import Diagnostic, DiagnosticBag
 from rssm_dsl.semantics.model import System
 from rssm_dsl.syntax import ast

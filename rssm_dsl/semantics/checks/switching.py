@@ -18,8 +18,8 @@ from __future__ import annotations
 import itertools
 import re
 from collections.abc import Mapping
-from dataclasses import dataclass
 
+from rssm_core.records import dataclass
 from rssm_dsl.diagnostics import Related
 from rssm_dsl.semantics.checks.context import CheckContext
 from rssm_dsl.semantics.model import Behaviour, Subsystem, Switch

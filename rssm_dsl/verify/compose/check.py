@@ -31,8 +31,9 @@ from __future__ import annotations
 
 import time
 from collections.abc import Callable, Hashable, Sequence
-from dataclasses import dataclass, field
+from dataclasses import field
 
+from rssm_core.records import dataclass
 from rssm_dsl.hpn.flat import FlatNet, Role
 from rssm_dsl.verify.budget import Budget, LimitReached
 from rssm_dsl.verify.compose.cache import rename, subtree_key

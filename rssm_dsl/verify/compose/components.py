@@ -14,8 +14,7 @@ composition, so safeness is decided without invariants.
 
 from __future__ import annotations
 
-from dataclasses import dataclass
-
+from rssm_core.records import dataclass
 from rssm_dsl.verify.budget import Budget
 from rssm_dsl.verify.compose.lts import BUSY, FINAL, OBSERVED, TAU, UNSAFE, VIOLATED, Edges, Lts
 from rssm_dsl.verify.compose.product import TooLarge

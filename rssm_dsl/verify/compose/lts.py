@@ -31,8 +31,8 @@ compositional check relies on. The algorithm:
 from __future__ import annotations
 
 from collections.abc import Callable, Sequence
-from dataclasses import dataclass
 
+from rssm_core.records import dataclass
 from rssm_dsl.verify.budget import Budget
 from rssm_dsl.verify.scc import components
 

@@ -17,8 +17,9 @@ piece per subsystem and one per channel under a root holding the rest.
 
 from __future__ import annotations
 
-from dataclasses import dataclass, field
+from dataclasses import field
 
+from rssm_core.records import dataclass
 from rssm_dsl.hpn.flat import FlatNet
 from rssm_dsl.verify.compose.components import Component
 from rssm_dsl.verify.netbits import NetBits, bits
