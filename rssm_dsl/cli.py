@@ -18,7 +18,7 @@ import typer
 
 from rssm_dsl import __version__
 from rssm_dsl.commands import COMMANDS, MODULE_OF
-from rssm_dsl.commands.common import EXIT_INTERRUPTED
+from rssm_dsl.commands.common import EXIT_INTERRUPTED, exit_now
 
 
 def _version(value: bool) -> None:
@@ -70,3 +70,6 @@ def entry() -> None:
         app()
     except KeyboardInterrupt:
         sys.exit(EXIT_INTERRUPTED)
+    except SystemExit as done:
+        exit_now(done.code)     # a one-shot command ends here, without the teardown
+        raise

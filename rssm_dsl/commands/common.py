@@ -10,7 +10,9 @@ and 4 verified without the progress check (rssm_dsl/commands/verify.py).
 
 from __future__ import annotations
 
+import gc
 import os
+import sys
 import traceback
 from collections.abc import Callable
 from enum import Enum
@@ -35,6 +37,39 @@ class Format(str, Enum):
 FileArg = Annotated[Path, typer.Argument(help="The .rssm file of the system.", show_default=False)]
 FormatOpt = Annotated[Format, typer.Option("--format", "-f", help="How to print diagnostics.")]
 QuietOpt = Annotated[bool, typer.Option("--quiet", "-q", help="Print nothing on success.")]
+
+
+_one_shot = False
+
+
+def one_shot() -> None:
+    """A command that computes once and ends: the cyclic garbage collector off for the rest
+    of the command, and the process ends without tearing its objects down (`exit_now`).
+    What the compiler allocates lives until the command ends and is freed by reference
+    counting; with the collector on, its first pass after compiling rescans every node (0.5 s
+    of 4 s on 1 MB of dense expressions), and the interpreter's teardown of the modules and
+    the syntax tree at exit is an eighth of `rssmc check`'s run on the LWR4+ example.
+    Only for commands that leave nothing to finish at exit: files written and closed, no
+    threads, subprocesses or temporary files."""
+    global _one_shot
+    _one_shot = True
+    gc.disable()
+
+
+def exit_now(code: object) -> None:
+    """After a one-shot command (`one_shot`), flush the output and end the process with
+    `code` (a SystemExit's) without the interpreter's teardown; otherwise return."""
+    if not _one_shot:
+        return
+    if isinstance(code, str):
+        print(code, file=sys.stderr)
+    status = code if isinstance(code, int) else 0 if code is None else 1
+    for stream in (sys.stdout, sys.stderr):
+        try:
+            stream.flush()
+        except (OSError, ValueError):   # a closed pipe (`rssmc check f | head -1`)
+            pass
+    os._exit(status)
 
 
 def guarded(fn: Callable[[], int]) -> None:
