@@ -10,6 +10,7 @@ and 4 verified without the progress check (rssm_dsl/commands/verify.py).
 
 from __future__ import annotations
 
+import contextlib
 import gc
 import os
 import sys
@@ -65,10 +66,8 @@ def exit_now(code: object) -> None:
         print(code, file=sys.stderr)
     status = code if isinstance(code, int) else 0 if code is None else 1
     for stream in (sys.stdout, sys.stderr):
-        try:
+        with contextlib.suppress(OSError, ValueError):  # a closed pipe (`rssmc check f | head -1`)
             stream.flush()
-        except (OSError, ValueError):   # a closed pipe (`rssmc check f | head -1`)
-            pass
     os._exit(status)
 
 
