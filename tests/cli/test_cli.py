@@ -168,6 +168,8 @@ def test_version_and_shell_completion() -> None:
     version = subprocess.run([sys.executable, "-m", "rssm_dsl", "--version"],
                              capture_output=True, text=True, timeout=60)
     assert version.stdout.strip() == f"rssmc {__version__}"
-    script = subprocess.run([sys.executable, "-m", "rssm_dsl", "--show-completion", "bash"],
+    # typer detects the shell from the process's parents (shellingham): run it from bash
+    # (`; true` keeps bash from replacing itself with the command), as a user would
+    script = subprocess.run(["bash", "-c", f"'{sys.executable}' -m rssm_dsl --show-completion; true"],
                             capture_output=True, text=True, timeout=60)
     assert script.returncode == 0 and "complete" in script.stdout, script.stderr
