@@ -56,7 +56,7 @@ in generated nodes, a source span in the interpreter).
 from __future__ import annotations
 
 import math
-from collections.abc import Callable, Mapping
+from collections.abc import Callable, Mapping, Sequence
 from types import ModuleType
 from typing import TYPE_CHECKING, Any
 
@@ -69,13 +69,16 @@ class _Numpy(ModuleType):
         import numpy
 
         globals()["np"] = numpy
+        globals()["_F64"] = numpy.dtype(numpy.float64)
         return getattr(numpy, name)
 
 
 if TYPE_CHECKING:
     import numpy as np
+    _F64: np.dtype[np.float64]
 else:
     np = _Numpy("numpy")
+    _F64 = None                    # numpy's float64 dtype, set with np at numpy's first use
 
 Desc = tuple[Any, ...]
 Convert = Callable[[Any], Any]
@@ -141,7 +144,9 @@ def describe(v: Any) -> str:
 
 def freeze(a: Any) -> Any:
     """``a``, made read-only (in place)."""
-    a.setflags(write=False)        # what `a.flags.writeable = False` does, at half the cost
+    # setflags(write=False) is what `a.flags.writeable = False` does at half the cost; the
+    # argument by position (`write` is the first) spares the parsing of a keyword
+    a.setflags(False)
     return a
 
 
@@ -150,8 +155,16 @@ def float_array(items: Any, size: int | None = None) -> Any:
     a = np.array(items, dtype=np.float64)
     if size is not None and a.shape != (size,):
         raise ValueError(f"shape {a.shape}, expected ({size},)")
-    a.setflags(write=False)
-    return a
+    return freeze(a)
+
+
+def joined(parts: Sequence[Any]) -> Any:
+    """A fresh read-only float64 array of the float64 arrays ``parts`` end to end (each
+    C-contiguous: their bytes are read as they are), such as a device's measurement whose
+    slices are the fields of a record. The parts' bytes joined into one immutable ``bytes``
+    and viewed as float64: read-only from the start, for less than half of what
+    ``np.concatenate`` and :func:`freeze` cost on a few short arrays."""
+    return np.frombuffer(b"".join(parts))
 
 
 def is_float_array(d: Desc) -> bool:
@@ -293,28 +306,6 @@ def _array(d: Desc) -> Convert:
 def _record(d: Desc) -> Convert:
     fields = [(n, converter(fd)) for n, fd in d[2]]
     names = {n for n, _ in d[2]}
-    size = len(fields)
-    # per field, the shape of a float[N] field (None for the others): a value of that type
-    # already is taken as it is without calling its converter (the converter's common case)
-    shapes = [(n, conv, (fd[2],) if is_float_array(fd) else None)
-              for (n, conv), (_, fd) in zip(fields, d[2], strict=True)]
-    ndarray, f64 = np.ndarray, np.dtype(np.float64)
-
-    def to_dict(v: Any) -> dict[str, Any]:
-        if type(v) is dict and len(v) == size:
-            out: dict[str, Any] = {}
-            try:
-                for n, conv, shape in shapes:   # a loop: cheaper than a comprehension's frame
-                    x = v[n]
-                    if (shape is not None and type(x) is ndarray and x.dtype is f64
-                            and x.shape == shape and not x.flags.writeable):
-                        out[n] = x
-                    else:
-                        out[n] = conv(x)
-                return out
-            except (KeyError, ValueTypeError):
-                pass                     # the slow path below says what is wrong
-        return checked(v)
 
     def checked(v: Any) -> dict[str, Any]:
         out: dict[str, Any] = {}
@@ -338,6 +329,39 @@ def _record(d: Desc) -> Convert:
             except ValueTypeError as e:
                 raise ValueTypeError(e.expected, e.got, f".{n}{e.path}") from None
         return out
+    return _to_dict(d, fields, checked)
+
+
+def _to_dict(d: Desc, fields: list[tuple[str, Convert]], checked: Convert) -> Convert:
+    """The converter of record ``d``. Its common case, a dict with the declared fields, each
+    converted in order (``fields``: name and converter), a ``float[N]`` field that is a value of
+    that type already taken as it is without calling its converter, is compiled for the record:
+    one expression with the fields unrolled, as a loop over them costs about twice as many
+    steps of the interpreter. Anything else (or a field that does not convert) goes to
+    ``checked``, which says what is wrong. Field names appear only in string literals written
+    by ``repr``."""
+    namespace: dict[str, Any] = {"ndarray": np.ndarray, "f64": np.dtype(np.float64),
+                                 "ValueTypeError": ValueTypeError, "checked": checked}
+    items: list[str] = []
+    for k, ((name, conv), (_, fd)) in enumerate(zip(fields, d[2], strict=True)):
+        namespace[f"convert{k}"] = conv
+        key = repr(name)
+        if is_float_array(fd):
+            items.append(f"{key}: x if (type(x := v[{key}]) is ndarray and x.dtype is f64 "
+                         f"and x.shape == ({int(fd[2])},) and not x.flags.writeable) "
+                         f"else convert{k}(x)")
+        else:
+            items.append(f"{key}: convert{k}(v[{key}])")
+    source = "\n".join([
+        "def to_dict(v):",
+        f"    if type(v) is dict and len(v) == {len(fields)}:",
+        "        try:",
+        "            return {" + ", ".join(items) + "}",
+        "        except (KeyError, ValueTypeError):",
+        "            pass",
+        "    return checked(v)", ""])
+    exec(compile(source, f"<record {d[1]}>", "exec"), namespace)
+    to_dict: Convert = namespace["to_dict"]
     return to_dict
 
 
@@ -521,16 +545,34 @@ def as_np(x: Any) -> Any:
     return np.array(x, dtype=np.float64)
 
 
+def as_float64(x: Any) -> Any:
+    """``x`` as a float64 array, as ``np.asarray(x, dtype=np.float64)`` gives it: ``x`` itself
+    when it is one already (a ``float[N]`` value), without the cost of that call."""
+    if type(x) is np.ndarray and x.dtype is _F64:    # np first: it sets _F64
+        return x
+    return np.asarray(x, dtype=np.float64)
+
+
+# The arithmetic of float arrays, run at every iteration of a controller: the fresh result is
+# made read-only in place (what freeze does, without the cost of calling it).
+
+
 def aadd(x: Any, y: Any) -> Any:
-    return freeze(np.add(x, y))
+    r = np.add(x, y)
+    r.setflags(False)
+    return r
 
 
 def asub(x: Any, y: Any) -> Any:
-    return freeze(np.subtract(x, y))
+    r = np.subtract(x, y)
+    r.setflags(False)
+    return r
 
 
 def amul(x: Any, y: Any) -> Any:
-    return freeze(np.multiply(x, y))
+    r = np.multiply(x, y)
+    r.setflags(False)
+    return r
 
 
 def adiv(x: Any, y: Any, y_array: bool, where: Any) -> Any:
@@ -540,7 +582,9 @@ def adiv(x: Any, y: Any, y_array: bool, where: Any) -> Any:
 
 
 def aneg(x: Any) -> Any:
-    return freeze(np.negative(x))
+    r = np.negative(x)
+    r.setflags(False)
+    return r
 
 
 def math1(fn: Callable[[float], float], name: str, x: float, where: Any) -> float:

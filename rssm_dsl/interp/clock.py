@@ -39,10 +39,16 @@ class Ticker:
 
     def start(self, now: int) -> None:
         """An iteration starts at ``now`` (never before ``self.next``)."""
-        if now >= self.next + self.period:
-            self.overruns += 1
+        period = self.period
+        # on its tick (the common case) the next one is a period on: what the formula below
+        # gives, ticks being multiples of the period, without dividing counts of ns
+        if now == self.next:
+            self.next = now + period
+        else:
+            if now >= self.next + period:
+                self.overruns += 1
+            self.next = (now // period + 1) * period
         self.starts += 1
-        self.next = (now // self.period + 1) * self.period
 
 
 class SimClock:

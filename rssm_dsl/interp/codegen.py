@@ -4,10 +4,10 @@ For the deterministic mode each transition ``t`` gets a function ``fire_t()`` th
 tokens of its input places, runs its effect, then for each output place puts the token, runs
 the place's operation and updates the count of missing tokens of the transitions reading that
 place, adding those that became enabled to the enabled set (local steps go to the stack of
-local steps instead: while the deterministic loop runs, the enabled set holds only the other
-transitions). Place and transition indices are constants in the code, loops
-over the net structure are unrolled: a firing costs a handful of list stores instead of a walk
-over the incidence lists.
+local steps instead, a paced one whose tick has not come to the loop's timers: while the
+deterministic loop runs, the enabled set holds only the other transitions). Place and
+transition indices are constants in the code, loops over the net structure are unrolled: a
+firing costs a handful of list stores instead of a walk over the incidence lists.
 
 Each transition also gets a *macro step* ``macro_t()``: the transition and then every local
 step it makes possible, in one function (see :meth:`FiringCode._macro`).
@@ -47,26 +47,38 @@ from __future__ import annotations
 
 import re
 from collections.abc import Callable, Collection, Mapping, Sequence, Set
+from heapq import heappush
 from types import CodeType
-from typing import Any
+from typing import Any, TypeVar
 
 from rssm_dsl.hpn.flat import FlatNet
+from rssm_dsl.interp.clock import SimClock
 from rssm_dsl.interp.engine import TokenGame
 
 Action = Callable[[], None]
+Macro = Callable[[], int]        # returns its number of firings (the loop adds it up)
 Step = Callable[[], object]      # an operation or an effect (what it returns is not used)
+R = TypeVar("R")
 MAX_MACRO = 64                   # firings in one macro step at most
 # the compiled functions by name and body, shared by the runs of a process
 _CODE: dict[tuple[str, str], CodeType] = {}
 MAX_CACHED = 100_000
 # the names of the namespace a function uses (bound as default arguments: fast locals)
-_NAMES = re.compile(r"\b(?:tokens|missing|_add|_discard|_local|_unsafe|_failure|[eoGN][0-9]+)\b")
+_NAMES = re.compile(r"\b(?:tokens|missing|_add|_discard|_local|_timers?|_clock|_unsafe|_failure"
+                    r"|[eoGNT][0-9]+)\b")
 # a call out of the token game's bookkeeping: an effect, an operation, an unsafe report
 _CALLS_OUT = re.compile(r"\b(?:[eo][0-9]+|co|_unsafe)\(")
 INVARIANT_ROWS = 2_000           # bounds of the place invariants' computation
 INVARIANT_SECONDS = 1.0
 MAX_NETS = 256                   # nets whose exclusive places are kept
 _EXCLUSIVE: dict[tuple[object, ...], tuple[frozenset[int], ...]] = {}   # by net structure
+
+
+def _add_one(u: int, count: str) -> str:
+    """The line that adds one to the count of missing tokens of ``u``, which is ``count``
+    (``missing[u]`` or a local holding it): ``missing[u] = ... + 1`` takes fewer instructions
+    of the interpreter than ``missing[u] += 1``."""
+    return f"missing[{u}] = {count} + 1"
 
 
 def exclusive_places(net: FlatNet) -> tuple[frozenset[int], ...]:
@@ -95,57 +107,91 @@ def exclusive_places(net: FlatNet) -> tuple[frozenset[int], ...]:
 
 class FiringCode:
     """Per transition: ``fire[t]`` fires it alone; ``macros[t]`` fires its macro step, which
-    makes ``macro_len[t]`` firings (``macros`` is None when macro steps are off)."""
+    makes ``macro_len[t]`` firings and returns that number (``macros`` is None when macro
+    steps are off).
+
+    With ``timers`` and ``clock`` (the deterministic loop's heap of ``(tick, local step)`` and
+    its simulated clock), a *paced* local step (see :meth:`_paced`) that becomes enabled before
+    its tick goes straight into ``timers``, where the loop would put it when it takes it from
+    the stack (nothing else happens to it there)."""
 
     def __init__(self, game: TokenGame, ops: Sequence[Step | None],
                  effects: Sequence[Step | None], guards: Sequence[object | None],
                  gates: Sequence[object | None], eager: bytearray, local: list[int],
                  case_groups: Mapping[int, Any], failure: Callable[[int, Exception], None],
-                 unsafe: Callable[[int, int], None], macros: bool) -> None:
+                 unsafe: Callable[[int, int], None], macros: bool,
+                 timers: list[tuple[int, int]] | None = None,
+                 clock: SimClock | None = None) -> None:
         self.game = game
         self.ops, self.effects, self.guards, self.gates = ops, effects, guards, gates
         self.eager = eager
         self.case_groups = case_groups
+        self.paced = self._paced() if timers is not None and clock is not None else set()
         # what the place invariants prove (for the net the rule describes)
         self.exclusive = exclusive_places(game.net) if game.rule is game.net.rule else \
             tuple(frozenset[int]() for _ in game.net.places)
         self.ns: dict[str, Any] = {
             "tokens": game.tokens, "missing": game.missing, "_add": game.enabled.add,
             "_discard": game.enabled.discard, "_local": local.append, "_failure": failure,
-            "_unsafe": unsafe,
+            "_unsafe": unsafe, "_timer": heappush, "_timers": timers, "_clock": clock,
         }
+        for u in self.paced:
+            self.ns[f"T{u}"] = gates[u]
         n = game.rule.ntransitions
         self.fire: list[Action] = [self._lazy(self.fire_table, t, self._firing)
                                    for t in range(n)]
-        self.macros: list[Action] | None = None
+        self.macros: list[Macro] | None = None
         self.macro_len: list[int] = [1] * n
         self._bodies: list[list[str]] = []
         if macros:
             built = [self._macro(t) for t in range(n)]
             self.macro_len = [count for _, count in built]
-            self._bodies = [body for body, _ in built]
+            self._bodies = [[*body, f"return {count}"] for body, count in built]
             self.macros = [self._lazy(self.macro_table, t, self._bodies.__getitem__)
                            for t in range(n)]
+
+    def _paced(self) -> set[int]:
+        """The local steps with a tick (a gate) whose input places no other transition reads.
+        Such a step stays enabled until it fires, and simulated time stands still while the
+        stack of local steps is not empty: when it becomes enabled before its tick, the loop
+        takes it from the stack only to put it into the timers, at that same tick (a gate's
+        next tick changes only when its tick has come)."""
+        rule, gates = self.game.rule, self.gates
+        return {u for u in range(rule.ntransitions)
+                if self.eager[u] and gates[u] is not None
+                and all(rule.consumers[p] == (u,) for p in rule.pre[u])}
+
+    def _enable(self, u: int, indent: str = "") -> list[str]:
+        """The lines that put ``u``, just enabled, where the loop finds it: the enabled set, or
+        for a local step the stack of local steps (a paced one the timers, before its tick)."""
+        if not self.eager[u]:
+            return [f"{indent}_add({u})"]
+        if u not in self.paced:
+            return [f"{indent}_local({u})"]
+        return [f"{indent}if T{u}.next > _clock.ns:",
+                f"{indent}    _timer(_timers, (T{u}.next, {u}))",
+                f"{indent}else:",
+                f"{indent}    _local({u})"]
 
     def fire_table(self) -> list[Action]:
         return self.fire
 
-    def macro_table(self) -> list[Action]:
+    def macro_table(self) -> list[Macro]:
         assert self.macros is not None
         return self.macros
 
     # ------------------------------------------------------------------ compiling
-    def _lazy(self, table: Callable[[], list[Action]], t: int,
-              body: Callable[[int], list[str]]) -> Action:
+    def _lazy(self, table: Callable[[], list[Callable[[], R]]], t: int,
+              body: Callable[[int], list[str]]) -> Callable[[], R]:
         """A stand-in that compiles the function of ``t`` when first called, puts it in its
         place in ``table()`` and runs it."""
-        def first_call() -> None:
-            fn = self._compile(f"f{t}", body(t))
+        def first_call() -> R:
+            fn: Callable[[], R] = self._compile(f"f{t}", body(t))
             table()[t] = fn
-            fn()
+            return fn()
         return first_call
 
-    def _compile(self, name: str, body: list[str]) -> Action:
+    def _compile(self, name: str, body: list[str]) -> Callable[[], Any]:
         text = "\n".join("    " + line for line in body or ["pass"])
         code = _CODE.get((name, text))
         if code is None:
@@ -156,7 +202,7 @@ class FiringCode:
             code = _CODE[name, text] = compile(source, f"<rssm {name}>", "exec")
         # generated from indices only: no text of the specification
         exec(code, self.ns)
-        fn: Action = self.ns.pop(name)
+        fn: Callable[[], Any] = self.ns.pop(name)
         return fn
 
     # ------------------------------------------------------------------ pieces of code
@@ -186,16 +232,17 @@ class FiringCode:
                         body.append(f"_discard({u})")
                     known[u] += 1
                 elif eager[u]:                   # local steps are not kept in the enabled set
-                    body.append(f"missing[{u}] += 1")
+                    body.append(_add_one(u, f"missing[{u}]"))
                 elif len(rule.pre[u]) == 1:
                     body.append(f"_discard({u})")
                     body.append(f"missing[{u}] = 1")
                 elif not empty.isdisjoint(rule.pre[u]):    # u is not enabled
-                    body.append(f"missing[{u}] += 1")
+                    body.append(_add_one(u, f"missing[{u}]"))
                 else:
-                    body.append(f"if missing[{u}] == 0:")
+                    body.append(f"m = missing[{u}]")
+                    body.append("if m == 0:")
                     body.append(f"    _discard({u})")
-                    body.append(f"missing[{u}] += 1")
+                    body.append(_add_one(u, "m"))
         if pre:
             body.append(f"missing[{t}] = {known[t]}")
 
@@ -218,26 +265,24 @@ class FiringCode:
               empty: Collection[int]) -> None:
         """The token of ``p`` is put and the transitions reading ``p`` are updated (one that
         also reads a place of ``empty``, known to hold no token, is not enabled by it)."""
-        rule, eager = self.game.rule, self.eager
-        pre, consumers = rule.pre, rule.consumers
+        pre, consumers = self.game.rule.pre, self.game.rule.consumers
         body.append(f"tokens[{p}] = 1")
         for u in consumers[p]:
-            enable = f"_local({u})" if eager[u] else f"_add({u})"
             if u in known:
                 known[u] -= 1
                 body.append(f"missing[{u}] = {known[u]}")
                 if known[u] == 0:
-                    body.append(enable)
+                    body += self._enable(u)
             elif len(pre[u]) == 1:
                 body.append(f"missing[{u}] = 0")
-                body.append(enable)
+                body += self._enable(u)
             elif any(q != p and q in empty for q in pre[u]):
-                body.append(f"missing[{u}] -= 1")
+                body.append(f"missing[{u}] = missing[{u}] - 1")   # not -=: see _add_one
             else:
                 body.append(f"m = missing[{u}] - 1")
                 body.append(f"missing[{u}] = m")
                 body.append("if m == 0:")
-                body.append(f"    {enable}")
+                body += self._enable(u, "    ")
 
     def _case(self, p: int, group: Any, body: list[str], empty: Collection[int]) -> None:
         """The case of the partial function whose input place is ``p`` (``group``, a

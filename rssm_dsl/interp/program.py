@@ -550,7 +550,9 @@ def _receive(rt: Runtime, owner: SubsystemState | DeviceState, buffer: str,
     dspan = owner.model.span
 
     def device_receive() -> None:
-        value = ch.take()
+        value = ch.value                         # ChannelState.take, inlined
+        ch.unread = False
+        ch.received += 1
         variables[buffer] = value
         if rt.tracer is not None:
             rt.emit({"event": "receive", "subsystem": sid, "buffer": buffer, "channel": ch.id,
@@ -565,12 +567,13 @@ def _receive(rt: Runtime, owner: SubsystemState | DeviceState, buffer: str,
 
 def _device_step(rt: Runtime, d: DeviceState, span: Span) -> Op:
     impl, variables = d.impl, d.vars
-    now_of = rt.clock.now
+    clock, now_of = rt.clock, rt.clock.now
+    simulated = clock if isinstance(clock, SimClock) else None   # read, not called: cheaper
     convert = {b.name: converter(b.type) for b in d.model.outputs}
     default_dt = d.ticker.period if d.ticker is not None else 0
 
     def device_step() -> None:
-        now = now_of()
+        now = simulated.ns if simulated is not None else now_of()
         dt = default_dt if d.last_step is None else now - d.last_step
         d.last_step = now
         d.steps += 1

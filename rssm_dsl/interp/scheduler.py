@@ -122,15 +122,18 @@ class Simulator:
         self._next_progress = 0.0
         self.eager = self._local_steps()
         self.local: list[int] = []       # local steps that became enabled (deterministic)
+        self.timers: list[tuple[int, int]] = []   # (tick, local step waiting for it): a heap
         self.fire: list[Callable[[], None]] = []
-        self.macros: list[Callable[[], None]] | None = None
+        self.macros: list[Callable[[], int]] | None = None   # each returns its firings
         self.macro_len: list[int] = []
         if options.mode == "deterministic":
+            assert isinstance(rt.clock, SimClock)       # see above
             eager = self.eager if options.eager and options.forced is None else bytearray(
                 len(self.eager))
             code = FiringCode(self.game, rt.ops, rt.effects, rt.guards, rt.gates, eager,
                               self.local, rt.case_groups, self._failure, self._raise_unsafe,
-                              options.macros and options.eager and options.forced is None)
+                              options.macros and options.eager and options.forced is None,
+                              self.timers, rt.clock)
             self.fire, self.macros, self.macro_len = code.fire, code.macros, code.macro_len
 
     def _local_steps(self) -> bytearray:
@@ -471,7 +474,7 @@ class _Deterministic:
         self.steps = 0                   # firings so far, stored when the loop ends or raises
         self.next_look = PROGRESS_EVERY                  # the next look at progress and time
         self.instant, self.instant_steps = clock.ns, 0   # when simulated time last moved (E808)
-        self.timers: list[tuple[int, int]] = []         # (tick, local step waiting for it)
+        self.timers = sim.timers         # (tick, local step waiting for it): a heap
         self.was_forced = False
         eager = sim.eager if opt.eager and self.forced is None else bytearray(len(sim.eager))
         self.local.extend(sorted((u for u in self.enabled if eager[u]), reverse=True))
@@ -536,8 +539,7 @@ class _Deterministic:
                     if t < 0:                    # time moved to the next tick
                         continue
                 if steps < fast:
-                    table[t]()
-                    steps += mlen[t]
+                    steps += table[t]()          # its macro step's firings, mlen[t]
                 else:
                     k = self.checked(t, steps)
                     fast = self.fast_bound(spare)

@@ -86,6 +86,7 @@ def _device_class() -> type[Any]:
 def run_experiment(comp: Compilation, options: RunOptions) -> Experiment:
     """Run the experiment of a compiled specification; raises RunError when it cannot."""
     from rssm_dsl.interp import RunConfig, SimOptions, Simulator, build_runtime
+    from rssm_dsl.interp.clock import SimClock
     from rssm_dsl.interp.errors import SetupError
     from rssm_dsl.interp.trace import TraceWriter
 
@@ -127,10 +128,11 @@ def run_experiment(comp: Compilation, options: RunOptions) -> Experiment:
     if options.damping is not None:
         effector.vars[DAMPING_PARAM] = options.damping == "velocity-error"
     control = rt.subsystems[rig.control]
-    recorder = Recorder(rt.clock.now, rt.channels[rig.setpoint_channel], control,
+    assert isinstance(rt.clock, SimClock)          # the run is deterministic
+    recorder = Recorder(rt.clock, rt.channels[rig.setpoint_channel], control,
                         control.ticker.period if control.ticker is not None else None,
                         options.switches if options.switches > 0 else None, options.keep_q)
-    device.observers.append(recorder)
+    device.observers.append(recorder.observe)
     device.observers.extend(options.observers)
 
     tracer = TraceWriter(options.trace) if options.trace is not None else None

@@ -18,13 +18,13 @@ subsystem (the experiment's cw -> ccw -> cw) it raises the interpreter's
 
 from __future__ import annotations
 
-from collections.abc import Callable
 from typing import Any
 
 import numpy as np
 from numpy.typing import NDArray
 
 from rssm_core.records import dataclass
+from rssm_dsl.interp.clock import SimClock
 from rssm_dsl.interp.errors import StopSimulation
 
 FloatArray = NDArray[np.float64]
@@ -49,14 +49,15 @@ class Samples:
 
 
 class Recorder:
-    """The observer; call :meth:`samples` after the run. Per step it only appends to lists
-    (the device's last measurement is read, not computed again); the desired positions are
+    """The device's observer is :meth:`observe` (a bound method costs less to call than an
+    instance); call :meth:`samples` after the run. Per step it only appends to lists (the
+    device's last measurement is read, not computed again); the desired positions are
     computed once at the end."""
 
-    def __init__(self, now_ns: Callable[[], int], channel: Any, control: Any,
+    def __init__(self, clock: SimClock, channel: Any, control: Any,
                  control_period_ns: int | None, stop_after: int | None,
                  keep_q: bool = False) -> None:
-        self._now = now_ns
+        self._clock = clock                      # simulated time: its field ns is read
         self._channel = channel                  # rssm_dsl.interp.channels.ChannelState
         self._control = control                  # rssm_dsl.interp.state.SubsystemState
         self._period = control_period_ns
@@ -94,8 +95,8 @@ class Recorder:
         if len(self.switches) == self._stop_after:
             self.stopped = True
 
-    def __call__(self, device: Any) -> None:
-        now = self._now()
+    def observe(self, device: Any) -> None:
+        now = self._clock.ns
         if self._channel.sent != self._sent:     # a new set point since the last step
             self._setpoint(now)
         control = self._control

@@ -27,6 +27,7 @@ from typing import Any, TextIO
 import mujoco  # type: ignore[import-untyped]
 import numpy as np
 
+from rssm_core.values import as_float64, joined
 from rssm_dsl.interp.device import DeviceBase, DeviceConfigError, DeviceSpec
 
 from .dynamics import EE_FRAME
@@ -101,25 +102,24 @@ class MujocoLwr4Device(DeviceBase):
 
     def _read(self) -> dict[str, Vector]:
         """The current state as read-only arrays (what ``measure`` reports): views of one
-        fresh, frozen copy (freezing one array costs less than freezing four)."""
+        fresh read-only copy (one copy costs less than four)."""
         mujoco.mj_objectVelocity(self._model, self._data, _SITE, self._site_id, self._vel6, 0)
-        buf = np.concatenate(self._parts)
-        buf.setflags(write=False)
+        buf = joined(self._parts)
         return {"q": buf[0:7], "dq": buf[7:14], "position": buf[14:17], "velocity": buf[17:20]}
 
     def receive(self, buffer: str, value: Any) -> None:
         if buffer == "torque":
-            self.tau = np.asarray(value, dtype=np.float64)
+            self.tau = as_float64(value)
 
     def step(self, dt: float) -> None:
         for observe in self.observers:
             observe(self)
         # integrate `dt` in whole model steps, carrying the remainder to the next period
         h = self._h
-        self._carry += dt
-        n = int(self._carry / h + 1e-9)
+        carry = self._carry + dt
+        n = int(carry / h + 1e-9)
         if n:
-            self._carry -= n * h
+            carry -= n * h
             # the torque limits (min/max: np.clip costs about 3x more on 7-vectors)
             np.maximum(self.tau, self._low, out=self._clipped)
             np.minimum(self._clipped, self._high, out=self._ctrl)
@@ -128,6 +128,7 @@ class MujocoLwr4Device(DeviceBase):
                 mujoco.mj_step2(model, data)
                 mujoco.mj_step1(model, data)
             self.state = self._read()
+        self._carry = carry
         self.time += dt
 
     def measure(self) -> Mapping[str, Any]:

@@ -24,6 +24,8 @@ from typing import Any
 
 import numpy as np
 
+from rssm_core.values import freeze
+
 from .dynamics import Vector, circle_point, circle_velocity, default_dynamics, impedance_torque
 
 # Flange position (m, world) of the start pose of the experiment (bench/lwr4_handloop.py:
@@ -31,18 +33,13 @@ from .dynamics import Vector, circle_point, circle_velocity, default_dynamics, i
 CIRCLE_START: Vector = np.array([0.580, 0.0, 0.400])
 
 
-def _frozen(a: Vector) -> Vector:
-    a.setflags(write=False)
-    return a
-
-
 def cartesian_impedance(state: Any, setpoint: Any, stiffness: float, damping: float,
                         damp_velocity_error: bool) -> Vector:
     """Joint torques (N·m) of the Cartesian impedance for an LwrState and a set point."""
-    tau = impedance_torque(state["q"], state["dq"], setpoint["position"], setpoint["velocity"],
-                           float(stiffness), float(damping), bool(damp_velocity_error),
-                           default_dynamics())
-    return _frozen(tau)
+    tau: Vector = freeze(impedance_torque(
+        state["q"], state["dq"], setpoint["position"], setpoint["velocity"], float(stiffness),
+        float(damping), bool(damp_velocity_error), default_dynamics()))
+    return tau
 
 
 def impedance(state: Any, setpoint: Any, stiffness: float, damping: float) -> Vector:
@@ -56,5 +53,5 @@ def circle_setpoint(radius: float, period: float, phase: float,
     angle = direction * phase
     centre = CIRCLE_START - circle_point(np.zeros(3), radius, 0.0)
     rate = direction * 2.0 * math.pi / period
-    return {"position": _frozen(circle_point(centre, radius, angle)),
-            "velocity": _frozen(circle_velocity(radius, angle, rate))}
+    return {"position": freeze(circle_point(centre, radius, angle)),
+            "velocity": freeze(circle_velocity(radius, angle, rate))}

@@ -49,6 +49,7 @@ from typing import Any
 import mujoco  # type: ignore[import-untyped]
 import numpy as np
 
+from rssm_core.values import as_float64, joined
 from rssm_dsl.interp.device import DeviceBase, DeviceConfigError, DeviceSpec
 
 from .dynamics import register
@@ -167,8 +168,7 @@ class MujocoArmDevice(DeviceBase):
 
     def _read(self) -> dict[str, Any]:
         mujoco.mj_objectVelocity(self.model, self.data, _SITE, self.site_id, self._vel6, 0)
-        buf = np.concatenate(self._parts)
-        buf.setflags(write=False)
+        buf = joined(self._parts)
         q, dq, p, v = self._slices
         state: dict[str, Any] = {"q": buf[q], "dq": buf[dq], "position": buf[p],
                                  "velocity": buf[v]}
@@ -191,7 +191,7 @@ class MujocoArmDevice(DeviceBase):
 
     def receive(self, buffer: str, value: Any) -> None:
         if buffer == "torque":
-            self.tau = np.asarray(value, dtype=np.float64)
+            self.tau = as_float64(value)
 
     def step(self, dt: float) -> None:
         for observe in self.observers:
