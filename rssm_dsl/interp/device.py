@@ -10,6 +10,15 @@ Values follow :mod:`rssm_dsl.interp.values` (float arrays as read-only float64 n
 records as dicts). ``measure`` may return a subset of the outputs (the others keep their
 values); what it returns is checked against the declared types (E803).
 
+A device class whose ``measure`` builds every value of an output the same way, so that the
+first value's type stands for all (a physics device reading fixed MuJoCo arrays), can say so
+with the class attribute ``typed_measurements = True``: the interpreter then checks each
+output the first time it is measured (E803, as for any device) and stores its later values
+as they are, without the check at every period (a few per cent of a 1 kHz run). The device
+must then also never change a value it has returned (its arrays read-only, a fresh dict for
+each record). The standard library's MuJoCo devices do; tests/interp/test_device_checks.py
+checks their measurements over a run.
+
 A simulator such as the MuJoCo LWR4+ fits as: ``receive("torque", tau)`` stores the command,
 ``step(dt)`` integrates ``dt`` seconds of physics, ``measure()`` returns ``{"state": {...}}``.
 """
@@ -19,7 +28,7 @@ from __future__ import annotations
 from collections.abc import Mapping
 from dataclasses import field
 from pathlib import Path
-from typing import Any, Protocol, runtime_checkable
+from typing import Any, ClassVar, Protocol, runtime_checkable
 
 from rssm_core.records import dataclass
 from rssm_dsl.semantics.types import Type
@@ -61,6 +70,8 @@ class Device(Protocol):
 
 class DeviceBase:
     """A convenient base class: stores the spec, ignores commands, measures nothing new."""
+
+    typed_measurements: ClassVar[bool] = False     # see the module docstring
 
     def __init__(self, spec: DeviceSpec) -> None:
         self.spec = spec

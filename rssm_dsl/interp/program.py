@@ -566,11 +566,18 @@ def _receive(rt: Runtime, owner: SubsystemState | DeviceState, buffer: str,
 
 
 def _device_step(rt: Runtime, d: DeviceState, span: Span) -> Op:
+    """The device operation: step the device, then check what it measures against the
+    declared types of its outputs (E803) and store it. A device class that declares
+    ``typed_measurements = True`` (see rssm_dsl.interp.device) has each output checked the
+    first time it measures it; later values of an output already checked are stored as they
+    are."""
     impl, variables = d.impl, d.vars
     clock, now_of = rt.clock, rt.clock.now
     simulated = clock if isinstance(clock, SimClock) else None   # read, not called: cheaper
     convert = {b.name: converter(b.type) for b in d.model.outputs}
     default_dt = d.ticker.period if d.ticker is not None else 0
+    typed = getattr(impl, "typed_measurements", False) is True
+    checked: set[str] = set()           # outputs of a typed device checked once
 
     def device_step() -> None:
         now = simulated.ns if simulated is not None else now_of()
@@ -583,6 +590,9 @@ def _device_step(rt: Runtime, d: DeviceState, span: Span) -> Op:
         except Exception as e:
             raise EvalError("E802", f"device {d.id} failed to step: {type(e).__name__}: {e}",
                             span) from e
+        if typed and checked.issuperset(measured):
+            variables.update(measured)
+            return
         for name, value in measured.items():
             conv = convert.get(name)
             if conv is None:
@@ -594,6 +604,8 @@ def _device_step(rt: Runtime, d: DeviceState, span: Span) -> Op:
                 raise EvalError("E803", f"device {d.id} measured {e} for output '{name}'",
                                 span, "return the declared type (see rssm_dsl.interp.values)",
                                 ) from None
+        if typed:
+            checked.update(measured)
     return device_step
 
 

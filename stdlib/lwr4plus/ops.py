@@ -35,10 +35,15 @@ CIRCLE_START: Vector = np.array([0.580, 0.0, 0.400])
 
 def cartesian_impedance(state: Any, setpoint: Any, stiffness: float, damping: float,
                         damp_velocity_error: bool) -> Vector:
-    """Joint torques (N·m) of the Cartesian impedance for an LwrState and a set point."""
-    tau: Vector = freeze(impedance_torque(
-        state["q"], state["dq"], setpoint["position"], setpoint["velocity"], float(stiffness),
-        float(damping), bool(damp_velocity_error), default_dynamics()))
+    """Joint torques (N·m) of the Cartesian impedance for an LwrState and a set point.
+
+    Called at every iteration of the effector: the gains arrive as the interpreter's floats
+    and the flag as its bool (impedance_torque takes any real gains and tests the flag's
+    truth), and the result is made read-only in place (what ``freeze`` does, one call less)."""
+    tau: Vector = impedance_torque(state["q"], state["dq"], setpoint["position"],
+                                   setpoint["velocity"], stiffness, damping,
+                                   damp_velocity_error, default_dynamics())
+    tau.setflags(False)
     return tau
 
 

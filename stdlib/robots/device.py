@@ -83,6 +83,9 @@ class MujocoArmDevice(DeviceBase):
     # step(dt) integrates dt of simulated physics: on ROS 2 with use_sim_time this device's
     # node is the clock of the system (rssm_dsl/ros2/runtime/simclock.py)
     simulation = True
+    # every measurement is built the same way (fresh read-only arrays, a fresh dict): the
+    # interpreter checks each output's first value only (rssm_dsl.interp.device)
+    typed_measurements = True
 
     def __init__(self, spec: DeviceSpec) -> None:
         super().__init__(spec)
