@@ -32,7 +32,9 @@ from pathlib import Path
 ROOT = Path(__file__).resolve().parent.parent
 DEFAULT_TESTS = ("tests/semantics", "tests/core", "tests/interp", "tests/verify/test_verify.py",
                  "tests/verify/test_statespace.py", "tests/hpn")
-SELECT = ["-m", "not ros2", "-k", "not golden"]
+# tests/core/test_mutant_list.py checks that each mutant's text occurs once in the tree: in a
+# mutated copy it fails by construction, so it would "kill" every mutant
+SELECT = ["-m", "not ros2", "-k", "not golden", "--ignore", "tests/core/test_mutant_list.py"]
 
 
 @dataclass(frozen=True)
@@ -116,6 +118,17 @@ MUTANTS = (
            "        s.last_conds = s.conds or {}\n"
            "        if s.conds is None:      # a constant-true stop condition: nothing was evaluated\n"
            "            s.evaluate_conditions()\n"),
+    Mutant("typed-device-never-checked",
+           "a device class declaring typed_measurements has not even its first measurement "
+           "of an output checked (E803)",
+           "rssm_dsl/interp/program.py",
+           "        if typed and checked.issuperset(measured):\n",
+           "        if typed:\n"),
+    Mutant("every-device-trusted",
+           "every device's measurements are checked once only, declared or not",
+           "rssm_dsl/interp/program.py",
+           '    typed = getattr(impl, "typed_measurements", False) is True\n',
+           "    typed = True\n"),
 )
 
 _IGNORE = shutil.ignore_patterns(".git", ".venv", ".cache", "__pycache__", "out", "node_modules",
