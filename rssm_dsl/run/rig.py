@@ -46,9 +46,11 @@ def find_rig(system: System) -> Rig | Diagnostic:
                if d.device_type == DEVICE_TYPE or d.binding == DEVICE_BINDING]
     if not devices:
         return Diagnostic(
-            "E870", f"system {system.name} has no LWR4+ device to run the experiment on",
-            system.span, "declare `real effector NAME: LWR4Plus` (import lwr4plus) in an "
-            "agent; `rssmc simulate` runs any system")
+            "E870", f"system {system.name} has no simulated robot for `rssmc run`: no LWR4+ "
+            "device and no device bound to the MuJoCo arm of the robots module",
+            system.span, "declare `real effector NAME: LWR4Plus` (import lwr4plus), or a "
+            "device type with `binding \"rssm_stdlib.robots.device:MujocoArmDevice\"` (any "
+            "arm, joint space); `rssmc simulate` runs any system")
     device: Device = devices[0]
     subsystems: dict[str, Subsystem] = {s.id: s for s in system.subsystems()}
     feeding = [ch for ch in system.channels
