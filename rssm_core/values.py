@@ -365,6 +365,36 @@ def _to_dict(d: Desc, fields: list[tuple[str, Convert]], checked: Convert) -> Co
     return to_dict
 
 
+class MeasurementError(Exception):
+    """What a device measured does not fit its outputs (E803); ``message`` says what, to be
+    put after "device ID " by the caller."""
+
+    def __init__(self, message: str, wrong_type: bool) -> None:
+        super().__init__(message)
+        self.message = message
+        self.wrong_type = wrong_type      # a value of the wrong type (else: not an output)
+
+
+def measured_values(convert: Mapping[str, Convert], measured: Mapping[str, Any]
+                    ) -> dict[str, Any]:
+    """The values to store of what a device measured (``measured``, output name -> value, a
+    subset of the outputs), each checked and converted by its output's converter
+    (``convert``); raises :class:`MeasurementError` at the first name that is not an output
+    or value that does not fit. The interpreter and the ROS 2 device node both check a
+    device's measurements here."""
+    out: dict[str, Any] = {}
+    for name, value in measured.items():
+        conv = convert.get(name)
+        if conv is None:
+            raise MeasurementError(f"measured '{name}', which is not one of its output buffers "
+                                   f"({', '.join(convert) or 'none'})", False)
+        try:
+            out[name] = conv(value)
+        except ValueTypeError as e:
+            raise MeasurementError(f"measured {e} for output '{name}'", True) from None
+    return out
+
+
 # ---------------------------------------------------------------- equality, JSON, text
 
 

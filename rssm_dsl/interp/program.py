@@ -34,6 +34,7 @@ from pathlib import Path
 from typing import Any
 
 from rssm_core.records import dataclass
+from rssm_core.values import MeasurementError, measured_values
 from rssm_dsl.bindings import BindingError, binding_dirs, callable_arity_problem, resolve
 from rssm_dsl.diagnostics import Diagnostic, Related
 from rssm_dsl.hpn.flat import FlatNet, FlatPlace, FlatTransition
@@ -48,7 +49,7 @@ from rssm_dsl.interp.errors import EvalError, SetupError
 from rssm_dsl.interp.initial import InitialValues
 from rssm_dsl.interp.state import BehaviourState, DeviceState, SubsystemState
 from rssm_dsl.interp.trace import TraceWriter
-from rssm_dsl.interp.values import ValueTypeError, converter, to_json
+from rssm_dsl.interp.values import converter, to_json
 from rssm_dsl.pipeline import Compilation
 from rssm_dsl.semantics.model import Device, Extern, Subsystem, System
 from rssm_dsl.semantics.typecheck import Symbol, owner_symbols
@@ -593,17 +594,12 @@ def _device_step(rt: Runtime, d: DeviceState, span: Span) -> Op:
         if typed and checked.issuperset(measured):
             variables.update(measured)
             return
-        for name, value in measured.items():
-            conv = convert.get(name)
-            if conv is None:
-                raise EvalError("E803", f"device {d.id} measured '{name}', which is not one of "
-                                f"its output buffers ({', '.join(convert) or 'none'})", span)
-            try:
-                variables[name] = conv(value)
-            except ValueTypeError as e:
-                raise EvalError("E803", f"device {d.id} measured {e} for output '{name}'",
-                                span, "return the declared type (see rssm_dsl.interp.values)",
-                                ) from None
+        try:
+            variables.update(measured_values(convert, measured))
+        except MeasurementError as e:
+            raise EvalError("E803", f"device {d.id} {e.message}", span,
+                            "return the declared type (see rssm_dsl.interp.values)"
+                            if e.wrong_type else None) from None
         if typed:
             checked.update(measured)
     return device_step

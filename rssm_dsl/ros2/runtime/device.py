@@ -31,7 +31,7 @@ from rclpy.executors import ExternalShutdownException, SingleThreadedExecutor
 from rclpy.node import Node
 
 from rssm_core.records import dataclass
-from rssm_core.values import Desc, ValueTypeError, converter, type_text
+from rssm_core.values import Desc, MeasurementError, converter, measured_values
 
 from .bindings import load
 from .channels import ChannelSpec
@@ -219,17 +219,10 @@ class DeviceRunner(Loop):
         self.steps += 1
         self.impl.step(dt)
         measured = self.impl.measure()
-        for name, value in measured.items():
-            conv = self.convert.get(name)
-            if conv is None:
-                raise SetupError(f"device {self.spec.id} measured '{name}', which is not one "
-                                 "of its output buffers")
-            try:
-                self.values[name] = conv(value)
-            except ValueTypeError as e:
-                d = dict(self.spec.outputs)[name]
-                raise SetupError(f"device {self.spec.id} measured {e} for output '{name}' "
-                                 f"({type_text(d)}) [E803]") from None
+        try:                  # every measurement, whatever typed_measurements says
+            self.values.update(measured_values(self.convert, measured))
+        except MeasurementError as e:
+            raise SetupError(f"device {self.spec.id} {e.message} [E803]") from None
 
 
 def run_device(spec: DeviceNodeSpec, args: list[str] | None = None) -> int:
