@@ -513,15 +513,11 @@ def _send(rt: Runtime, owner: SubsystemState | DeviceState, buffer: str, ch: Cha
           fp: FlatPlace) -> Op:
     variables = owner.vars
     sid, name, span = owner.id, fp.name, str(fp.span)
+    put = ch.put
 
     def send() -> None:
         value = variables[buffer]
-        overwrote = ch.unread                    # ChannelState.put, inlined
-        if overwrote:
-            ch.overwritten += 1
-        ch.value = value
-        ch.unread = True
-        ch.sent += 1
+        overwrote = put(value)
         if rt.tracer is not None:
             rt.emit({"event": "send", "subsystem": sid, "buffer": buffer, "channel": ch.id,
                      "value": to_json(value), "overwrote": overwrote, "place": name,
@@ -535,11 +531,10 @@ def _receive(rt: Runtime, owner: SubsystemState | DeviceState, buffer: str,
     sid, name, span = owner.id, fp.name, str(fp.span)
     if isinstance(owner, SubsystemState):
         received, k = owner.new.received, owner.inputs.index(buffer)
+        take = ch.take
 
         def receive() -> None:
-            value = ch.value                     # ChannelState.take, inlined
-            ch.unread = False
-            ch.received += 1
+            value = take()
             variables[buffer] = value
             received(k)
             if rt.tracer is not None:
@@ -549,11 +544,10 @@ def _receive(rt: Runtime, owner: SubsystemState | DeviceState, buffer: str,
         return receive
     impl = owner.impl
     dspan = owner.model.span
+    device_take = ch.take
 
     def device_receive() -> None:
-        value = ch.value                         # ChannelState.take, inlined
-        ch.unread = False
-        ch.received += 1
+        value = device_take()
         variables[buffer] = value
         if rt.tracer is not None:
             rt.emit({"event": "receive", "subsystem": sid, "buffer": buffer, "channel": ch.id,
