@@ -222,6 +222,33 @@ class FreeCondition:
 
 
 @dataclass(frozen=True)
+class SimulationSummary:
+    """What the random runs of the interpreter did (``rssm_dsl.falsify``): ``text`` in one
+    line ("12 random run(s) (seed 0), 40,000 firings in 2.0 s: found nothing"), the violation
+    they found and confirmed in the net (its kind and counterexample), and whether it agrees
+    with what the exhaustive engines proved (``consistent``: False is a bug of one of them)."""
+
+    ran: bool
+    text: str
+    runs: int = 0
+    firings: int = 0
+    seconds: float = 0.0
+    seed: int = 0
+    found: str | None = None                   # deadlock | unsafe | progress
+    counterexample: Counterexample | None = None
+    consistent: bool = True
+    unconfirmed: tuple[str, ...] = ()          # stops of runs the net does not confirm
+
+    def to_json(self) -> dict[str, Any]:
+        return {"ran": self.ran, "text": self.text, "runs": self.runs,
+                "firings": self.firings, "seconds": round(self.seconds, 3), "seed": self.seed,
+                "found": self.found, "consistent": self.consistent,
+                "counterexample": self.counterexample.to_json()
+                if self.counterexample is not None else None,
+                "unconfirmed": list(self.unconfirmed)}
+
+
+@dataclass(frozen=True)
 class VerifyReport:
     system: str
     verdict: Verdict
@@ -271,6 +298,8 @@ class VerifyReport:
     # sliced verification (verify/sliced.py): per blocking group its subsystems and whether
     # its slice can get stuck for good (a deadlock of the slice; None: not decided)
     groups: tuple[tuple[tuple[str, ...], bool | None], ...] = field(default=())
+    # the random runs of the interpreter (rssm_dsl.falsify); None: not asked for
+    simulation: SimulationSummary | None = None
 
     @property
     def exit_code(self) -> int:
@@ -350,6 +379,8 @@ class VerifyReport:
             "peak_memory_bytes": self.peak_memory,
             "groups": [{"subsystems": list(g), "stuck": stuck} for g, stuck in self.groups],
             "user_properties": [p.to_json() for p in self.user_properties],
+            "simulation": self.simulation.to_json() if self.simulation is not None
+            else None,
             "conditions": {"new_tracked_cases": self.new_tracked_cases,
                            "tracked_values": list(self.tracked_values),
                            "free_choices": [c.to_json() for c in self.free_conditions]},
@@ -402,6 +433,8 @@ def _summary_lines(r: VerifyReport) -> list[str]:
     else:
         out.append(f"  states:     none explored (no search ran), {r.seconds:.2f} s")
     out.append("  limits:     " + _limits_text(r))
+    if r.simulation is not None:
+        out.append(f"  simulation: {r.simulation.text}")
     return out
 
 
