@@ -41,7 +41,8 @@ def compile_cmd(
     output: Annotated[Path | None, typer.Option("--output", "-o",
                       help="Output folder (default: out/<file name>).")] = None,
     emit: Annotated[str, typer.Option(help="Comma-separated outputs: json, dump, dot, pnml, "
-                                       "pnml-paged, cpn.")]
+                                       "pnml-paged, cpn, mcc (Model Checking Contest input: "
+                                       "mcc/model.pnml and property files).")]
     = "json,dump,dot,pnml",
     format: FormatOpt = Format.text,
     quiet: QuietOpt = False,
@@ -51,15 +52,16 @@ def compile_cmd(
 
     def run() -> int:
         from rssm_dsl.emit import EMITTERS
+        from rssm_dsl.emit.mcc import emit_mcc
         from rssm_dsl.emit.write import write_outputs
         from rssm_dsl.pipeline import compile_file
 
         one_shot()
         kinds = [k.strip() for k in emit.split(",") if k.strip()]
-        unknown = [k for k in kinds if k not in EMITTERS]
+        unknown = [k for k in kinds if k not in EMITTERS and k != "mcc"]
         if unknown:
             typer.echo(f"rssmc: unknown --emit {', '.join(unknown)}; choose from "
-                       f"{', '.join(EMITTERS)}", err=True)
+                       f"{', '.join([*EMITTERS, 'mcc'])}", err=True)
             return EXIT_USAGE
         comp = compile_file(file)
         report(comp, format, quiet)
@@ -67,7 +69,9 @@ def compile_cmd(
             return EXIT_ERRORS
         files: dict[str, str] = {}
         for k in kinds:
-            files.update(EMITTERS[k](comp.hpn))
+            # mcc also writes the spec's properties: it needs the checked system
+            files.update(emit_mcc(comp.hpn, comp.system) if k == "mcc"
+                         else EMITTERS[k](comp.hpn))
         target = output if output is not None else Path("out") / file.stem
         written = write_outputs(target, files)
         if not quiet and format is Format.text:
