@@ -1,0 +1,68 @@
+"""`rssmc verify` with the random runs beside the exhaustive engines, under one budget:
+
+1. the exhaustive engines first, for ``FIRST_TRY`` seconds at most (``SHARE`` of the time
+   limit if that is less): most specifications are decided there, and then the random runs
+   only check, for ``CHECK`` seconds, that they find nothing the engines proved impossible
+   (a violation the engines found is reported as it is, without runs);
+2. else the random runs, for ``SLICE`` seconds at most (``SHARE`` of the time limit if that is
+   less). A violation they find and the net confirms is the verdict (VIOLATED with its
+   counterexample); the engines' first try is what the report says of the rest;
+3. else the exhaustive engines again, with the rest of the budget.
+
+So a specification the engines decide in their first second costs ``CHECK`` seconds more,
+one they do not decide at most ``FIRST_TRY + SLICE``.
+"""
+
+from __future__ import annotations
+
+import dataclasses
+
+from rssm_dsl.falsify.falsifier import FalsifyOptions, falsify
+from rssm_dsl.falsify.merge import apply, not_run
+from rssm_dsl.hpn.flat import FlatNet
+from rssm_dsl.pipeline import Compilation
+from rssm_dsl.verify import VerifyOptions, verify
+from rssm_dsl.verify.report import Verdict, VerifyReport
+
+FIRST_TRY = 1.0       # seconds of the exhaustive engines before the random runs
+SLICE = 2.0           # seconds of random runs when the first try decided nothing
+CHECK = 0.25          # seconds of random runs after a proof (the consistency check)
+SHARE = 0.05          # of the time limit, at most, for each of the above
+
+
+def verify_with_simulation(net: FlatNet, comp: Compilation, options: VerifyOptions,
+                           falsifier: FalsifyOptions | None = None) -> VerifyReport:
+    """The verifier's report on ``net`` with what the random runs of ``comp`` found (see
+    the module docstring); ``options.budget`` is the run's budget."""
+    budget = options.budget
+    assert budget is not None, "the command's budget"
+    fopts = falsifier or FalsifyOptions()
+    fopts = dataclasses.replace(fopts, check_progress=fopts.check_progress
+                                and options.check_progress)
+    limit = budget.time_limit
+
+    def share(seconds: float) -> float:
+        return seconds if limit is None else min(seconds, SHARE * limit)
+
+    first_try = share(FIRST_TRY)
+    with budget.capped(first_try) as cap:
+        first = verify(net, options)
+    if budget.stop is not None:
+        return not_run(first, budget.stop.short, fopts.seed)
+    if first.verdict is Verdict.VIOLATED:
+        return not_run(first, "the exhaustive engines found a violation first", fopts.seed)
+    if first.verdict is not Verdict.INCONCLUSIVE and not cap.hit:
+        return apply(first, net, falsify(comp, net, budget, dataclasses.replace(
+            fopts, seconds=share(CHECK))))
+    found = falsify(comp, net, budget, dataclasses.replace(fopts, seconds=share(SLICE)))
+    if found.finding is not None:
+        if cap.hit:
+            first = dataclasses.replace(first, stop=None, why_undecided=(
+                f"not decided by the exhaustive engines' first try ({first_try:g} s), not "
+                "resumed once the random runs had found a violation"), notes=tuple(
+                f"the exhaustive engines' first try ({first_try:g} s): {n}"
+                for n in first.notes))
+        return apply(first, net, found)
+    if not cap.hit:         # the engines' own limits (--max-states) left it open
+        return apply(first, net, found)
+    return apply(verify(net, options), net, found)
