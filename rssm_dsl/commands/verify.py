@@ -32,6 +32,7 @@ import typer
 from rssm_dsl.commands.common import EXIT_INTERRUPTED, EXIT_USAGE, FileArg, Format, guarded, report
 
 if TYPE_CHECKING:
+    from rssm_dsl.falsify import FalsifyOptions
     from rssm_dsl.verify.budget import Budget, Status
 
 EXIT_BAD_INPUT = EXIT_USAGE         # a usage error or a specification that does not compile
@@ -81,6 +82,16 @@ def verify_cmd(
     progress: Annotated[bool, typer.Option(
         "--progress", help="Show progress on stderr (phase, states, states/s, memory) even "
                            "when stderr is not a terminal: a line every 5 s.")] = False,
+    simulation: Annotated[bool, typer.Option(
+        "--simulation/--no-simulation",
+        help="Seeded random runs of the interpreter beside the exhaustive engines (device "
+             "values drawn at random): a deadlock or stall they find, confirmed in the net, "
+             "is reported as a violation with its trace.")] = True,
+    seed: Annotated[int, typer.Option("--seed", help="Seed of the random runs.")] = 0,
+    device_option: Annotated[list[str] | None, typer.Option(
+        "--device-option", help="ID:values=JSON: the values a device's outputs are drawn from "
+                                "in the random runs, e.g. 'arm.R.cam:values={\"ok\": [true, "
+                                "false]}' (repeatable; ID may be a pattern).")] = None,
 ) -> None:
     """Prove the system's HPN safe and deadlock-free (and that no subsystem loses progress),
     or print a counterexample as a firing sequence of your behaviours and channels.
@@ -108,6 +119,10 @@ def verify_cmd(
         if fairness not in ("strong", "weak"):
             typer.echo(f"rssmc: --fairness must be strong or weak, not {fairness!r}", err=True)
             return EXIT_BAD_INPUT
+        falsifier = _falsifier(simulation, seed, device_option or [])
+        if isinstance(falsifier, str):
+            typer.echo(falsifier, err=True)
+            return EXIT_BAD_INPUT
         try:
             memory = parse_size(max_memory) if max_memory is not None else default_max_memory()
         except ValueError as e:
@@ -120,7 +135,7 @@ def verify_cmd(
             with _limited(budget):
                 code = _verify(budget, live, file, format, reduction, max_states, invariants,
                                progress_check, cross_check, promela, show_invariants,
-                               fairness)
+                               fairness, falsifier)
         except KeyboardInterrupt:               # a second Ctrl-C: quit at once
             code = EXIT_INTERRUPTED
             typer.echo("rssmc: interrupted", err=True)
@@ -138,7 +153,8 @@ def verify_cmd(
 
 def _verify(budget: Budget, live: _Live | None, file: Path, format: Format, reduction: str,
             max_states: int, invariants: bool, progress_check: bool, cross_check: bool,
-            promela: Path | None, show_invariants: bool, fairness: str = "strong") -> int:
+            promela: Path | None, show_invariants: bool, fairness: str = "strong",
+            falsifier: FalsifyOptions | None = None) -> int:
     """Compile, verify, print; the exit code."""
     from rssm_dsl.hpn.flatten import flatten
     from rssm_dsl.pipeline import compile_file
@@ -164,7 +180,12 @@ def _verify(budget: Budget, live: _Live | None, file: Path, format: Format, redu
     options = VerifyOptions(max_states=max_states, reduction=reduction, invariants=invariants,
                             check_progress=progress_check, budget=budget, values=values,
                             fairness=fairness)
-    result = verify(net, options)
+    if falsifier is None:
+        result = verify(net, options)
+    else:
+        from rssm_dsl.falsify import verify_with_simulation
+
+        result = verify_with_simulation(net, comp, options, falsifier)
     extra: dict[str, Any] = {}
     text_extra: list[str] = []
     if cross_check:
@@ -187,6 +208,19 @@ def _verify(budget: Budget, live: _Live | None, file: Path, format: Format, redu
             and result.verdict is not Verdict.VIOLATED):
         return EXIT_INTERRUPTED
     return int(result.exit_code)
+
+
+def _falsifier(on: bool, seed: int, device_options: list[str]) -> FalsifyOptions | str | None:
+    """The random runs' options (None: --no-simulation), or the usage error."""
+    if not on:
+        return None
+    from rssm_dsl.commands.simulate import _device_options
+    from rssm_dsl.falsify import FalsifyOptions
+
+    try:
+        return FalsifyOptions(seed=seed, device_options=_device_options(device_options))
+    except typer.BadParameter as e:
+        return f"rssmc: --device-option: {e.message}"
 
 
 @contextlib.contextmanager
