@@ -43,9 +43,10 @@ QuietOpt = Annotated[bool, typer.Option("--quiet", "-q", help="Print nothing on 
 _one_shot = False
 
 
-def one_shot() -> None:
+def one_shot(collector: bool = False) -> None:
     """A command that computes once and ends: the cyclic garbage collector off for the rest
-    of the command, and the process ends without tearing its objects down (`exit_now`).
+    of the command (unless `collector`), and the process ends without tearing its objects
+    down (`exit_now`).
     What the compiler allocates lives until the command ends and is freed by reference
     counting; with the collector on, its first pass after compiling rescans every node (0.5 s
     of 4 s on 1 MB of dense expressions), and the interpreter's teardown of the modules and
@@ -54,7 +55,8 @@ def one_shot() -> None:
     threads, subprocesses or temporary files."""
     global _one_shot
     _one_shot = True
-    gc.disable()
+    if not collector:
+        gc.disable()
 
 
 def exit_now(code: object) -> None:

@@ -10,30 +10,44 @@ violation was found before); 70 internal error.
 Limits (``rssm_dsl.verify.budget``): one budget per run, from the command's start: the
 deadline (``--timeout``), the memory limit (``--max-memory``, checked against the resident
 size; ``RLIMIT_DATA`` a margin above it as a backstop) and Ctrl-C. Long loops check it and the
-run ends within a second or two of a limit with the partial report. Progress is shown on
-stderr once a run takes over 2 s: one line refreshed on a terminal, a line every 5 s with
-``--progress`` elsewhere.
+run ends within a second or two of a limit with the partial report. A watchdog
+(``rssm_dsl.verify.watchdog``) makes the limits bind in the phases that do not check (the
+compilation, the flattening): 2 s after a limit it interrupts the phase (the partial report
+of ``rssm_dsl.verify.partial``), 2 s later it prints that report and ends the process.
+Progress is shown on stderr once a run takes over 2 s, in every phase: one line refreshed on
+a terminal, a line every 2 s with ``--progress`` elsewhere.
 """
 
 from __future__ import annotations
 
 import contextlib
+import gc
+import math
 import os
 import signal
 import sys
 import time
-from collections.abc import Iterator
+from collections.abc import Callable, Iterator
 from pathlib import Path
 from types import FrameType
 from typing import TYPE_CHECKING, Annotated, Any
 
 import typer
 
-from rssm_dsl.commands.common import EXIT_INTERRUPTED, EXIT_USAGE, FileArg, Format, guarded, report
+from rssm_dsl.commands.common import (
+    EXIT_INTERRUPTED,
+    EXIT_USAGE,
+    FileArg,
+    Format,
+    guarded,
+    one_shot,
+    report,
+)
 
 if TYPE_CHECKING:
     from rssm_dsl.falsify import FalsifyOptions
-    from rssm_dsl.verify.budget import Budget, Status
+    from rssm_dsl.verify.budget import Budget, Status, Stop
+    from rssm_dsl.verify.watchdog import Watchdog
 
 EXIT_BAD_INPUT = EXIT_USAGE         # a usage error or a specification that does not compile
 EXIT_INCONCLUSIVE = 3               # = rssm_dsl.verify.report.EXIT_INCONCLUSIVE
@@ -46,7 +60,8 @@ def verify_cmd(
     = 5_000_000,
     timeout: Annotated[float, typer.Option("--timeout", min=0.1,
                        help="Stop (inconclusive) after this many seconds, counted from the "
-                            "start of the command.")] = 300.0,
+                            "start of the command, in every phase (compilation included); "
+                            "inf: no time limit.")] = 300.0,
     max_memory: Annotated[str | None, typer.Option(
         "--max-memory", metavar="SIZE",
         help="Stop (inconclusive) when the resident memory reaches SIZE: 8G, 500M, 40% (of "
@@ -81,7 +96,7 @@ def verify_cmd(
     = False,
     progress: Annotated[bool, typer.Option(
         "--progress", help="Show progress on stderr (phase, states, states/s, memory) even "
-                           "when stderr is not a terminal: a line every 5 s.")] = False,
+                           "when stderr is not a terminal: a line every 2 s.")] = False,
     simulation: Annotated[bool, typer.Option(
         "--simulation/--no-simulation",
         help="Seeded random runs of the interpreter beside the exhaustive engines (device "
@@ -96,7 +111,8 @@ def verify_cmd(
     """Prove the system's HPN safe and deadlock-free (and that no subsystem loses progress),
     or print a counterexample as a firing sequence of your behaviours and channels.
 
-    It stops within a second or two of --timeout, --max-memory or Ctrl-C, with what was proved.
+    It stops within a few seconds of --timeout, --max-memory or Ctrl-C, in any phase
+    (compilation included), with what was proved.
 
     Exit codes:
       0    verified: safe, deadlock-free, no loss of progress
@@ -111,6 +127,12 @@ def verify_cmd(
 
     def run() -> int:
         from rssm_dsl.verify.budget import Budget, default_max_memory, parse_size
+        from rssm_dsl.verify.watchdog import Watchdog
+
+        # no teardown at exit: freeing a large spec's objects one by one takes seconds after
+        # the report (10 s for synth.lean_ring_system(2000) stopped in the flattening);
+        # the engines make cyclic garbage, so the collector stays on
+        one_shot(collector=True)
 
         if reduction not in ("auto", "on", "off", "compositional"):
             typer.echo(f"rssmc: --reduction must be auto, on, off or compositional, not "
@@ -118,6 +140,10 @@ def verify_cmd(
             return EXIT_BAD_INPUT
         if fairness not in ("strong", "weak"):
             typer.echo(f"rssmc: --fairness must be strong or weak, not {fairness!r}", err=True)
+            return EXIT_BAD_INPUT
+        if math.isnan(timeout):
+            typer.echo("rssmc: --timeout nan: give a number of seconds (at least 0.1), or "
+                       "inf for no time limit", err=True)
             return EXIT_BAD_INPUT
         falsifier = _falsifier(simulation, seed, device_option or [])
         if isinstance(falsifier, str):
@@ -130,12 +156,14 @@ def verify_cmd(
             return EXIT_BAD_INPUT
         tty = sys.stderr.isatty()
         live = _Live(tty) if tty or progress else None
-        budget = Budget(timeout, memory, start=started, on_status=live)
+        budget = Budget(None if math.isinf(timeout) else timeout, memory, start=started,
+                        on_status=live)
+        watch = Watchdog(budget, _give_up(budget, live, file, format, progress_check))
         try:
-            with _limited(budget):
-                code = _verify(budget, live, file, format, reduction, max_states, invariants,
-                               progress_check, cross_check, promela, show_invariants,
-                               fairness, falsifier)
+            with _limited(budget), watch:
+                code = _verify(budget, watch, live, file, format, reduction, max_states,
+                               invariants, progress_check, cross_check, promela,
+                               show_invariants, fairness, falsifier)
         except KeyboardInterrupt:               # a second Ctrl-C: quit at once
             code = EXIT_INTERRUPTED
             typer.echo("rssmc: interrupted", err=True)
@@ -151,45 +179,62 @@ def verify_cmd(
     guarded(run)
 
 
-def _verify(budget: Budget, live: _Live | None, file: Path, format: Format, reduction: str,
-            max_states: int, invariants: bool, progress_check: bool, cross_check: bool,
-            promela: Path | None, show_invariants: bool, fairness: str = "strong",
-            falsifier: FalsifyOptions | None = None) -> int:
-    """Compile, verify, print; the exit code."""
+def _verify(budget: Budget, watch: Watchdog, live: _Live | None, file: Path, format: Format,
+            reduction: str, max_states: int, invariants: bool, progress_check: bool,
+            cross_check: bool, promela: Path | None, show_invariants: bool,
+            fairness: str = "strong", falsifier: FalsifyOptions | None = None) -> int:
+    """Compile, verify, print; the exit code. Every phase runs named in the budget, under
+    the watchdog: a limit ends any of them (``_stopped``: the partial report)."""
     from rssm_dsl.hpn.flatten import flatten
     from rssm_dsl.pipeline import compile_file
     from rssm_dsl.verify import VerifyOptions, render_text, verify
+    from rssm_dsl.verify.budget import LimitReached
     from rssm_dsl.verify.dataplan import value_plan
     from rssm_dsl.verify.report import Verdict
 
-    with budget.running("the compilation"):
-        comp = compile_file(file)
-        if not comp.ok or comp.hpn is None:
-            report(comp, format)
-            return EXIT_BAD_INPUT
-        net = flatten(comp.hpn)
-        budget.poll()               # a limit reached while compiling is the compilation's
-    with budget.running("the compilation"):
-        values = value_plan(comp, net)
-    if promela is not None:
-        from rssm_dsl.emit.write import write_outputs
-        from rssm_dsl.verify.promela import to_promela
+    system = file.stem
+    try:
+        with _collector_paused():
+            with budget.running("the compilation"):
+                comp = compile_file(file)
+            if not comp.ok or comp.hpn is None:
+                watch.finish()
+                report(comp, format)
+                return EXIT_BAD_INPUT
+            budget.check()          # a limit reached while compiling: no further phase
+            with budget.running("the flattening"):
+                net = flatten(comp.hpn)
+            system = net.system
+            budget.check()
+            with budget.running("the value plan"):
+                values = value_plan(comp, net)
+        if promela is not None:
+            from rssm_dsl.emit.write import write_outputs
+            from rssm_dsl.verify.promela import to_promela
 
-        write_outputs(promela.parent if str(promela.parent) else Path("."),
-                      {promela.name: to_promela(net, values)})
-    options = VerifyOptions(max_states=max_states, reduction=reduction, invariants=invariants,
-                            check_progress=progress_check, budget=budget, values=values,
-                            fairness=fairness)
-    if falsifier is None:
-        result = verify(net, options)
-    else:
-        from rssm_dsl.falsify import verify_with_simulation
+            with budget.running("the Promela export"):
+                write_outputs(promela.parent if str(promela.parent) else Path("."),
+                              {promela.name: to_promela(net, values)})
+        options = VerifyOptions(max_states=max_states, reduction=reduction,
+                                invariants=invariants, check_progress=progress_check,
+                                budget=budget, values=values, fairness=fairness)
+        with budget.running("the verification"):
+            if falsifier is None:
+                result = verify(net, options)
+            else:
+                from rssm_dsl.falsify import verify_with_simulation
 
-        result = verify_with_simulation(net, comp, options, falsifier)
-    extra: dict[str, Any] = {}
-    text_extra: list[str] = []
-    if cross_check:
-        extra, text_extra = _cross_check(net, result, comp.hpn, budget, values)
+                result = verify_with_simulation(net, comp, options, falsifier)
+        extra: dict[str, Any] = {}
+        text_extra: list[str] = []
+        if cross_check:
+            extra, text_extra = _cross_check(net, result, comp.hpn, budget, values)
+        watch.finish()      # the verdict is in: the report is written whatever the clock says
+    except (LimitReached, MemoryError) as e:
+        watch.finish()
+        stop = e.stop if isinstance(e, LimitReached) else budget.out_of_memory()
+        return _stopped(budget, live, stop, watch.interrupted, system, file, format,
+                        progress_check)
     if live is not None:
         live.clear()
     if format is Format.json:
@@ -210,6 +255,48 @@ def _verify(budget: Budget, live: _Live | None, file: Path, format: Format, redu
     return int(result.exit_code)
 
 
+def _stopped(budget: Budget, live: _Live | None, stop: Stop, interrupted: str | None,
+             system: str, file: Path, format: Format, progress_check: bool) -> int:
+    """A limit stopped a phase that does not return a report (the front end), or the
+    watchdog interrupted one: the partial report of what was done; its exit code."""
+    from rssm_dsl.verify.partial import PartialReport
+
+    partial = PartialReport.of(budget, stop, system, str(file), interrupted, progress_check)
+    if live is not None:
+        live.clear()
+    typer.echo(partial.render(format is Format.json), nl=False)
+    return partial.exit_code
+
+
+def _give_up(budget: Budget, live: _Live | None, file: Path, format: Format,
+             progress_check: bool) -> Callable[[Stop, str], None]:
+    """What the watchdog does when the main thread does not return after a limit (it is
+    inside C code): print the partial report straight to the file descriptors and end the
+    process with its exit code, without the interpreter's teardown."""
+    from rssm_dsl.verify.partial import PartialReport
+
+    def give_up(stop: Stop, phase: str) -> None:
+        partial = PartialReport.of(budget, stop, file.stem, str(file), phase, progress_check)
+        text = partial.render(format is Format.json)
+        with contextlib.suppress(OSError, ValueError):
+            sys.stdout.flush()
+        clear = "\r\x1b[K" if live is not None and live.shown else ""
+        _write_all(2, f"{clear}rssmc: {phase} did not stop within "
+                      f"{time.monotonic() - budget.start - stop.at:.1f} s of the limit; "
+                      "ending the process\n")
+        _write_all(1, text)
+        os._exit(partial.exit_code)
+
+    return give_up
+
+
+def _write_all(fd: int, text: str) -> None:
+    data = text.encode("utf-8", errors="replace")
+    with contextlib.suppress(OSError):
+        while data:
+            data = data[os.write(fd, data):]
+
+
 def _falsifier(on: bool, seed: int, device_options: list[str]) -> FalsifyOptions | str | None:
     """The random runs' options (None: --no-simulation), or the usage error."""
     if not on:
@@ -221,6 +308,24 @@ def _falsifier(on: bool, seed: int, device_options: list[str]) -> FalsifyOptions
         return FalsifyOptions(seed=seed, device_options=_device_options(device_options))
     except typer.BadParameter as e:
         return f"rssmc: --device-option: {e.message}"
+
+
+@contextlib.contextmanager
+def _collector_paused() -> Iterator[None]:
+    """The front end (compilation, flattening, value plan) without the cyclic garbage
+    collector, and what it built frozen afterwards (``gc.freeze``): it lives until the
+    command ends, and every full collection would scan it again. On a large spec such a
+    collection holds the GIL for seconds (7 s on the flattening of
+    ``synth.lean_ring_system(2000)`` on a loaded machine), when neither the watchdog's
+    thread nor its exception can run. The objects are unfrozen when the command ends."""
+    enabled = gc.isenabled()
+    gc.disable()
+    try:
+        yield
+    finally:
+        gc.freeze()
+        if enabled:
+            gc.enable()
 
 
 @contextlib.contextmanager
@@ -247,6 +352,7 @@ def _limited(budget: Budget) -> Iterator[None]:
     try:
         yield
     finally:
+        gc.unfreeze()           # what _collector_paused froze
         if restore is not None:
             restore()
         if old_handler is not None:
@@ -254,8 +360,11 @@ def _limited(budget: Budget) -> Iterator[None]:
 
 
 class _Live:
-    """The progress line on stderr, from the budget's status reports: nothing in the first
-    2 s; then on a terminal one line refreshed in place, elsewhere a line every 5 s."""
+    """The progress line on stderr, from the budget's status reports (the phases' own and
+    the watchdog's): nothing in the first 2 s; then on a terminal one line refreshed in
+    place, elsewhere a line every ``EVERY`` seconds."""
+
+    EVERY = 2.0
 
     def __init__(self, tty: bool) -> None:
         self.tty = tty
@@ -265,7 +374,7 @@ class _Live:
     def __call__(self, status: Status) -> None:
         from rssm_dsl.verify.budget import format_size
 
-        if status.elapsed < 2.0 or (not self.tty and status.elapsed - self.last < 5.0):
+        if status.elapsed < 2.0 or (not self.tty and status.elapsed - self.last < self.EVERY):
             return
         self.last = status.elapsed
         states = (f", {status.states:,} states ({status.rate:,.0f}/s)" if status.states

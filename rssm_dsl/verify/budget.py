@@ -22,6 +22,7 @@ memory limit.
 from __future__ import annotations
 
 import contextlib
+import math
 import os
 import signal
 import subprocess
@@ -34,6 +35,7 @@ from rssm_core.records import dataclass
 
 GB = 1 << 30
 MB = 1 << 20
+MAX_SIZE = 1 << 60              # bytes: the largest --max-memory (1048576T)
 DEFAULT_MEMORY_FRACTION = 0.6       # of the machine's physical memory (or the cgroup's limit)
 _MEASURE_EVERY = 0.005              # seconds between two reads of the resident size
 _PAGE = os.sysconf("SC_PAGE_SIZE") if hasattr(os, "sysconf") else 4096
@@ -127,6 +129,9 @@ class Budget:
         self._measured = -1.0
         self._reported = self.start
         self._reported_states = 0
+        self.depth = 0                 # phases open (``running``)
+        self.completed: list[tuple[str, float, int]] = []  # phases that returned without a
+        #                                                    stop: name, seconds, depth
 
     # ------------------------------------------------------------------ the stop request
     def cancel(self) -> None:
@@ -143,11 +148,16 @@ class Budget:
         """Name the phase that the checks inside belong to (restored afterwards)."""
         outer, outer_states = self.phase, self.states
         self.phase, self.states, self._reported_states = phase, 0, 0
+        began, depth = time.monotonic(), self.depth
+        self.depth += 1
         try:
             yield self
+            if self.stop is None:
+                self.completed.append((phase, time.monotonic() - began, depth))
         finally:
             self.phase, self.states = outer, outer_states
             self._reported_states = outer_states
+            self.depth = depth
 
     @contextmanager
     def capped(self, seconds: float) -> Iterator[Cap]:
@@ -223,6 +233,27 @@ class Budget:
             self.stop = Stop(MEMORY, self.phase, None if self.max_memory is None
                              else float(self.max_memory), now - self.start, self._rss, detail)
         return self.stop
+
+    def expire(self, kind: str, detail: str = "") -> Stop:
+        """Record that a limit of the run (``kind``: time, memory, interrupt) was reached,
+        as the verify command's watchdog sees it from outside the phase: the run's stop,
+        without raising (the next check raises). Returns the run's stop, which stays the
+        first one recorded."""
+        if self.stop is None:
+            now = time.monotonic()
+            limit = (self.time_limit if kind == TIME else None if kind == INTERRUPT
+                     else None if self.max_memory is None else float(self.max_memory))
+            self.stop = Stop(kind, self.phase, limit, now - self.start, self._rss, detail)
+        return self.stop
+
+    def report_status(self, quiet_for: float = 0.0) -> None:
+        """Report the status now (resident size measured), unless the phase itself
+        reported one in the last ``quiet_for`` seconds: the watchdog's progress line in the
+        phases that do not check the budget."""
+        now = time.monotonic()
+        if self.on_status is not None and now - self._reported >= quiet_for:
+            self._measure(now)
+            self._status(now)
 
     def resident(self) -> int:
         """The resident size, bytes (measured now)."""
@@ -323,7 +354,11 @@ def parse_size(text: str) -> int:
         total = physical_memory()
         if total is None:
             raise ValueError("the machine's physical memory is unknown: give a size")
-        return int(total * float(s[:-1]) / 100)
+        share = _finite(s[:-1])
+        if not 0 < share <= 100:
+            raise ValueError("a share of the physical memory is a percentage above 0, "
+                             "at most 100")
+        return max(1, int(total * share / 100))
     for suffix in ("IB", "B"):
         if s.endswith(suffix) and len(s) > len(suffix) and not s[:-len(suffix)][-1].isdigit():
             s = s[:-len(suffix)]
@@ -333,10 +368,23 @@ def parse_size(text: str) -> int:
     if s and s[-1] in scale:
         factor = scale[s[-1]]
         s = s[:-1]
-    value = float(s)
-    if value <= 0:
+    value = _finite(s) * factor
+    if value < 1:
         raise ValueError("the size must be positive")
-    return int(value * factor)
+    if value > MAX_SIZE:
+        raise ValueError(f"the size must be at most {MAX_SIZE >> 40}T (no machine has more)")
+    return int(value)
+
+
+def _finite(text: str) -> float:
+    """The number ``text``: a ValueError for nan, inf and what is not a number."""
+    try:
+        value = float(text)
+    except ValueError:
+        raise ValueError("not a number with an optional unit (K, M, G, T) or %") from None
+    if not math.isfinite(value):
+        raise ValueError("the size must be a finite number")
+    return value
 
 
 def format_size(n: int) -> str:

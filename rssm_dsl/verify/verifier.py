@@ -41,6 +41,7 @@ a final marking is the system having finished, not an error.
 
 from __future__ import annotations
 
+import contextlib
 import dataclasses
 import time
 from collections.abc import Collection
@@ -119,7 +120,8 @@ def verify(net: FlatNet, options: VerifyOptions | None = None) -> VerifyReport:
             opts = dataclasses.replace(opts, budget=Budget(opts.time_limit, opts.max_memory))
         return _with_properties(net, opts, _abstraction_first(net, opts))
     if opts.slicing and opts.reduction == "auto":
-        groups = blocking_groups(net)
+        with _named(opts.budget, "the slicing"):
+            groups = blocking_groups(net)
         if len(groups) > 1:
             budget = (opts.budget if opts.budget is not None
                       else Budget(opts.time_limit, opts.max_memory))
@@ -137,7 +139,8 @@ def verify(net: FlatNet, options: VerifyOptions | None = None) -> VerifyReport:
             inner = dataclasses.replace(opts, slicing=False, budget=budget, reduction="on")
             left = budget.remaining()
             # the slices get two thirds of the time left: the whole net may need the rest
-            with budget.capped(SLICES_SHARE * left if left is not None else float("inf")):
+            with budget.capped(SLICES_SHARE * left if left is not None else float("inf")), \
+                    budget.running("the sliced verification"):
                 sliced = verify_sliced(net, groups, inner, budget, verify)
             if sliced.verdict is not Verdict.INCONCLUSIVE or budget.stop is not None:
                 return dataclasses.replace(sliced, stop=budget.stop)
@@ -150,7 +153,8 @@ def verify(net: FlatNet, options: VerifyOptions | None = None) -> VerifyReport:
                 "the whole net was verified instead", *whole.notes))
     # new(x) and the finite values in the net's places (datanet.py, valuenet.py), the report
     # told back in net's words
-    tracked = track_values(track_new(net), opts.values)
+    with _named(opts.budget, "the data tracking"):
+        tracked = track_values(track_new(net), opts.values)
     if tracked.changed:
         return tracked.report(verify(tracked.net, dataclasses.replace(opts, values=None)))
     opts = options or VerifyOptions()
@@ -158,7 +162,9 @@ def verify(net: FlatNet, options: VerifyOptions | None = None) -> VerifyReport:
     budget = opts.budget if opts.budget is not None else Budget(opts.time_limit, opts.max_memory)
     nb = NetBits.of(net)
     notes: list[str] = []
-    inv = _invariants(net, opts, budget, notes) if opts.invariants and not budget.stop else None
+    with budget.running("the place invariants"):
+        inv = (_invariants(net, opts, budget, notes) if opts.invariants and not budget.stop
+               else None)
     safe_mask = to_mask(inv.safe_places) if inv else 0
     safe_by_invariants = inv is not None and inv.proves_safe(nb.nplaces)
     full, comp, reduced = _searches(net, nb, opts, safe_mask, budget, notes)
@@ -238,6 +244,11 @@ def verify(net: FlatNet, options: VerifyOptions | None = None) -> VerifyReport:
         max_memory=budget.max_memory,
         peak_memory=max(budget.peak, budget.resident()),
     )
+
+
+def _named(budget: Budget | None, phase: str) -> contextlib.AbstractContextManager[object]:
+    """``budget.running(phase)``, or nothing without a budget."""
+    return budget.running(phase) if budget is not None else contextlib.nullcontext()
 
 
 def _with_properties(net: FlatNet, opts: VerifyOptions, report: VerifyReport) -> VerifyReport:
