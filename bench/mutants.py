@@ -31,7 +31,8 @@ from pathlib import Path
 
 ROOT = Path(__file__).resolve().parent.parent
 DEFAULT_TESTS = ("tests/semantics", "tests/core", "tests/interp", "tests/verify/test_verify.py",
-                 "tests/verify/test_statespace.py", "tests/hpn")
+                 "tests/verify/test_statespace.py", "tests/hpn",
+                 "tests/verify/test_userprops.py", "tests/verify/test_stubborn.py")
 # tests/core/test_mutant_list.py checks that each mutant's text occurs once in the tree: in a
 # mutated copy it fails by construction, so it would "kill" every mutant
 SELECT = ["-m", "not ros2", "-k", "not golden", "--ignore", "tests/core/test_mutant_list.py"]
@@ -129,6 +130,43 @@ MUTANTS = (
            "rssm_dsl/interp/program.py",
            '    typed = getattr(impl, "typed_measurements", False) is True\n',
            "    typed = True\n"),
+    # the stubborn-set conditions (verify/stubborn.py); killed by tests/verify/test_userprops.py
+    # and tests/verify/test_stubborn.py (run: --only stubborn)
+    Mutant("stubborn-no-visibility",
+           "V dropped: an enabled visible transition in a stubborn set does not bring the "
+           "other visible ones",
+           "rssm_dsl/verify/stubborn.py",
+           "                    add |= self.visible\n",
+           "                    pass\n"),
+    Mutant("stubborn-visible-alone",
+           "V dropped for the shortcut: a visible transition in conflict with nothing is a "
+           "stubborn set on its own",
+           "rssm_dsl/verify/stubborn.py",
+           "            if nb.conflict[t] == 1 << t and not visible >> t & 1:\n",
+           "            if nb.conflict[t] == 1 << t:\n"),
+    Mutant("stubborn-no-proviso",
+           "L dropped: no fully expanded marking on the cycles of the reduced graph "
+           "(a transition may be ignored for ever)",
+           "rssm_dsl/verify/stubborn.py",
+           "                    if stopped is not None or not proviso:\n",
+           "                    if True:\n"),
+    Mutant("stubborn-no-key-conflicts",
+           "D1/D2 dropped for an enabled transition: its conflicting transitions are not "
+           "added to the set",
+           "rssm_dsl/verify/stubborn.py",
+           "                add = conflict[t]\n",
+           "                add = 0\n"),
+    Mutant("stubborn-no-scapegoat",
+           "D1 dropped for a disabled transition with one unmarked input place: the "
+           "producers of that place are not added",
+           "rssm_dsl/verify/stubborn.py",
+           "                add = producers[missing.bit_length() - 1]\n",
+           "                add = 0\n"),
+    Mutant("stubborn-no-up-set",
+           "the up-set dropped: markings where a firing is unsafe may be skipped",
+           "rssm_dsl/verify/stubborn.py",
+           "        up = self.up_set(m) if self.watched else 0\n",
+           "        up = 0\n"),
 )
 
 _IGNORE = shutil.ignore_patterns(".git", ".venv", ".cache", "__pycache__", "out", "node_modules",

@@ -43,38 +43,43 @@ from rssm_dsl.verify.cover import one_token_semiflows
 from rssm_dsl.verify.datanet import TrackedNet, track_new
 from rssm_dsl.verify.dataplan import ValuePlan
 from rssm_dsl.verify.netbits import NetBits
-from rssm_dsl.verify.progress import backward_closure
+from rssm_dsl.verify.progress import backward_closure, shortest_path, terminal_component
 from rssm_dsl.verify.report import Counterexample, PropertyResult, marking_labels
 from rssm_dsl.verify.slicing import ReplayError, Slice, blocking_groups, replay_group, slice_net
-from rssm_dsl.verify.statespace import Graph, explore_full
+from rssm_dsl.verify.statespace import Graph, SearchResult, explore_full
 from rssm_dsl.verify.stubborn import explore_reduced
 from rssm_dsl.verify.valuenet import track_values
 
 
 def check_properties(net: FlatNet, system: System, plan: ValuePlan | None,
-                     budget: Budget, max_states: int) -> tuple[PropertyResult, ...]:
+                     budget: Budget, max_states: int,
+                     reduction: str = "auto") -> tuple[PropertyResult, ...]:
     """Every property of ``system`` checked on ``net`` (the module docstring). The
-    properties of one kind on the same slice share one exploration."""
+    properties on the same slice share one exploration (the engine ``reduction`` names:
+    "off" full, "on" stubborn sets, "auto" and "compositional" full then stubborn sets)."""
     groups = blocking_groups(net)
-    batches: dict[tuple[str, tuple[str, ...]], list[tuple[Property, list[Formula]]]] = {}
+    batches: dict[tuple[str, ...], list[tuple[Property, list[Formula]]]] = {}
     for prop in system.properties:
         formulas = [Formula(system, e) for e in prop.expressions]
         mentioned = {a.subsystem_id for f in formulas for a in f.atoms}
         keep = tuple(sorted({s for g in groups if mentioned & set(g) for s in g}))
-        batches.setdefault((prop.kind, keep), []).append((prop, formulas))
+        batches.setdefault(keep, []).append((prop, formulas))
     results: dict[str, PropertyResult] = {}
-    for (kind, keep), batch in batches.items():
+    for keep, batch in batches.items():
         if budget.stop is not None:
             for prop, _ in batch:
                 results[prop.name] = PropertyResult(
                     prop.name, prop.kind, _text(prop), None, None,
                     f"not checked: {budget.stop.message}", prop.span)
             continue
-        where = _explore(net, kind, keep, [f for _, fs in batch for f in fs], plan, budget,
-                         max_states)
+        where = _explore(net, keep, [f for _, fs in batch for f in fs], plan, budget,
+                         max_states, reduction)
         for prop, formulas in batch:
             results[prop.name] = _judge(net, prop, formulas, where, budget)
     return tuple(results[p.name] for p in system.properties)
+
+
+AUTO_FULL_STATES = 1_000_000    # "auto": the full search's share before the stubborn sets
 
 
 @dataclass
@@ -86,10 +91,12 @@ class _Explored:
     graph: Graph | None               # None: not decided (``why``)
     where: str
     why: str
+    how: str = ""                     # the engine, its states per second
 
 
-def _explore(net: FlatNet, kind: str, keep: tuple[str, ...], formulas: list[Formula],
-             plan: ValuePlan | None, budget: Budget, max_states: int) -> _Explored:
+def _explore(net: FlatNet, keep: tuple[str, ...], formulas: list[Formula],
+             plan: ValuePlan | None, budget: Budget, max_states: int,
+             reduction: str = "auto") -> _Explored:
     atoms = [a for f in formulas for a in f.atoms]
     sl = slice_net(net, keep) if set(keep) != set(net.subsystems) and keep else None
     base = sl.net if sl is not None else net
@@ -97,25 +104,41 @@ def _explore(net: FlatNet, kind: str, keep: tuple[str, ...], formulas: list[Form
                      if isinstance(a, Value))
     tracked = track_values(track_new(base), plan, keys)
     nb = NetBits.of(tracked.net)
-    if kind == "always":          # state invariants: stubborn sets keep them (stubborn.py, V)
-        # the places one-token semiflows prove safe need no up-set (stubborn.py)
-        safe = 0
-        for f in one_token_semiflows(tracked.net, range(len(tracked.net.places)),
-                                     lambda: budget.poll() is not None):
-            for p in f.support:
-                safe |= 1 << p
-        result = explore_reduced(nb, safe_places=safe, max_states=max_states,
-                                 max_counterexamples=1, for_progress=True, budget=budget,
-                                 visible=_visible(tracked.net, atoms))
-    else:
-        result = explore_full(nb, max_states=max_states, keep_graph=True,
-                              max_counterexamples=1, budget=budget)
     where = "the whole net" if sl is None else f"the slice of {', '.join(keep)}"
+    result: SearchResult | None = None
+    if reduction != "on":        # the compact bit-matrix search (statespace.py)
+        limit = max_states if reduction == "off" else min(max_states, AUTO_FULL_STATES)
+        result = explore_full(nb, max_states=limit, keep_graph=True,
+                              max_counterexamples=1, budget=budget)
+        if reduction == "off" or result.complete or budget.stop is not None \
+                or "state limit" not in (result.stopped or ""):
+            return _explored(tracked, sl, result, where, reduction)
+    # stubborn sets keeping every transition that can change an atom visible, with the
+    # cycle proviso (stubborn.py): they keep both kinds of property (docs/verify.md)
+    safe = 0            # the places one-token semiflows prove safe need no up-set
+    for f in one_token_semiflows(tracked.net, range(len(tracked.net.places)),
+                                 lambda: budget.poll() is not None):
+        for p in f.support:
+            safe |= 1 << p
+    reduced = explore_reduced(nb, safe_places=safe, max_states=max_states,
+                              max_counterexamples=1, for_progress=True, budget=budget,
+                              visible=visible_transitions(tracked.net, atoms))
+    return _explored(tracked, sl, reduced, where, reduction)
+
+
+def _explored(tracked: TrackedNet, sl: Slice | None, result: SearchResult,
+              where: str, reduction: str) -> _Explored:
+    engine = "full exploration" if result.method == "full" else "stubborn sets"
+    rate = result.states / result.seconds if result.seconds > 0 else 0.0
+    how = f"{engine}, {rate:,.0f} states/s"
+    if reduction == "compositional":
+        how += "; the compositional check does not check properties"
     if not result.complete or result.graph is None:
         why = result.stopped or "the exploration stopped"
         return _Explored(tracked, sl, None, where,
-                         f"not decided: {why} ({result.states:,} states of {where})")
-    return _Explored(tracked, sl, result.graph, where, "")
+                         f"not decided: {why} ({result.states:,} states of {where}; {how})",
+                         how)
+    return _Explored(tracked, sl, result.graph, where, "", how)
 
 
 def _judge(net: FlatNet, prop: Property, formulas: list[Formula], ex: _Explored,
@@ -134,12 +157,15 @@ def _judge(net: FlatNet, prop: Property, formulas: list[Formula], ex: _Explored,
         bad = p & ~pu & ~reach_q & ~qu
         unknown = (pu | qu) & ~reach_q
     bad &= ~unknown
-    states = f"{graph.size:,} states of {where}"
+    states = f"{graph.size:,} states of {where}; {ex.how}"
     if bad.any():
         state = int(np.flatnonzero(bad)[0])
-        steps = tracked.steps(tracked.net.transitions[t] for t in graph.path(state))
+        to_cycle: tuple[int, ...] = ()
+        cycle: tuple[int, ...] = ()
+        if prop.kind != "always":       # the lasso: on, Q never again
+            to_cycle, cycle = _lasso(graph, state, budget)
         try:
-            cx = _lift(net, ex.slice, steps, prop)
+            cx = _lift(net, ex.slice, tracked, graph.path(state), to_cycle, cycle, prop)
         except ReplayError as e:
             return PropertyResult(prop.name, prop.kind, _text(prop), None, None,
                                   f"not decided: a violation found in {where} was not "
@@ -154,6 +180,22 @@ def _judge(net: FlatNet, prop: Property, formulas: list[Formula], ex: _Explored,
                           prop.span)
 
 
+def _lasso(graph: Graph, state: int, budget: Budget) -> tuple[tuple[int, ...],
+                                                              tuple[int, ...]]:
+    """From a state that cannot reach the goal: a path to a terminal component and a cycle
+    in it (none when the component is a deadlock). Every state reachable from ``state``
+    misses the goal, so the run repeats the cycle forever without it."""
+    _, component = terminal_component(graph, state, budget)
+    to_cycle, entry = shortest_path(graph, state, component)
+    ptr, _ = graph.forward()
+    if ptr[entry + 1] == ptr[entry]:
+        return to_cycle, ()
+    goal = np.zeros(graph.size, dtype=np.bool_)
+    goal[entry] = True
+    cycle, _ = shortest_path(graph, entry, goal, allow_empty=False)
+    return to_cycle, cycle
+
+
 def _text(prop: Property) -> str:
     from rssm_dsl.syntax.printer import expr_text
 
@@ -164,18 +206,44 @@ def _text(prop: Property) -> str:
     return f"whenever {expr_text(prop.trigger)} eventually {expr_text(prop.goal)}"
 
 
-def _lift(net: FlatNet, sl: Slice | None, steps: Sequence[FlatTransition],
-          prop: Property) -> Counterexample:
+def _lift(net: FlatNet, sl: Slice | None, tracked: TrackedNet, prefix: Sequence[int],
+          to_cycle: Sequence[int], cycle: Sequence[int], prop: Property) -> Counterexample:
+    """The counterexample in the whole net's words: the prefix (and for a response
+    property the path on to the cycle, and the cycle) replayed there."""
+    tn = tracked.net.transitions
+
+    def told(ts: Sequence[int]) -> tuple[FlatTransition, ...]:
+        return tracked.steps(tn[t] for t in ts)
+
+    steps, more, loop = told(prefix), told(to_cycle), told(cycle)
     if sl is None:
-        marking = set(net.initial)
-        for t in steps:
-            marking -= set(t.pre)
-            marking |= set(t.post)
-        return Counterexample("property", tuple(steps), marking_labels(net, frozenset(marking)),
-                              subsystem=prop.name)
+        return Counterexample("property", steps, _marking_after(net, steps),
+                              subsystem=prop.name, to_cycle=more, cycle=loop,
+                              cycle_marking=_marking_after(net, (*steps, *more)) if loop
+                              else ())
     fired, m = replay_group(sl, sl.whole_steps(steps))
-    return Counterexample("property", tuple(net.transitions[t] for t in fired),
-                          marking_labels(net, m), subsystem=prop.name)
+    reached = marking_labels(net, m)
+    if not more and not loop:
+        return Counterexample("property", tuple(net.transitions[t] for t in fired), reached,
+                              subsystem=prop.name)
+    on, m2 = replay_group(sl, sl.whole_steps(more), m)
+    try:
+        around, _ = replay_group(sl, sl.whole_steps(loop), m2)
+    except ReplayError:             # the cycle needs the rest of the system: the path only
+        around = []
+    return Counterexample("property", tuple(net.transitions[t] for t in fired), reached,
+                          subsystem=prop.name,
+                          to_cycle=tuple(net.transitions[t] for t in on),
+                          cycle=tuple(net.transitions[t] for t in around),
+                          cycle_marking=marking_labels(net, m2) if around else ())
+
+
+def _marking_after(net: FlatNet, steps: Sequence[FlatTransition]) -> tuple[str, ...]:
+    marking = set(net.initial)
+    for t in steps:
+        marking -= set(t.pre)
+        marking |= set(t.post)
+    return marking_labels(net, frozenset(marking))
 
 
 def _truth(f: Formula, graph: Graph, net: FlatNet) -> tuple[Any, Any]:
@@ -237,7 +305,7 @@ def _evaluate(f: Formula, row: tuple[int, ...], getters: list[Any]) -> bool | No
         return None
 
 
-def _visible(net: FlatNet, atoms: Sequence[Any]) -> int:
+def visible_transitions(net: FlatNet, atoms: Sequence[Any]) -> int:
     """The transitions that can change an atom: those touching one side only of a
     behaviour's places, or of one value's place."""
     masks: list[int] = []
