@@ -139,6 +139,12 @@ class Counterexample:
                 out += [f"        {step_text(t)}" for t in self.to_cycle]
             out.append("    and then forever:")
             out += [f"        {step_text(t)}" for t in self.cycle]
+        elif self.kind == "property" and (self.to_cycle or self.cycle):
+            out.append("    then, the goal never reached:")
+            out += [f"        {step_text(t)}" for t in self.to_cycle]
+            if self.cycle:
+                out.append("    and then forever:")
+                out += [f"        {step_text(t)}" for t in self.cycle]
         return out
 
     def to_json(self) -> dict[str, Any]:
@@ -154,6 +160,10 @@ class Counterexample:
         if self.kind == "progress":
             data["stuck_at"] = list(self.stuck_at())
             data["stuck_at_locations"] = list(self.stuck_where())
+            data["to_cycle"] = [_transition_json(t) for t in self.to_cycle]
+            data["cycle"] = [_transition_json(t) for t in self.cycle]
+            data["cycle_marking"] = list(self.cycle_marking)
+        elif self.kind == "property" and (self.to_cycle or self.cycle):
             data["to_cycle"] = [_transition_json(t) for t in self.to_cycle]
             data["cycle"] = [_transition_json(t) for t in self.cycle]
             data["cycle_marking"] = list(self.cycle_marking)

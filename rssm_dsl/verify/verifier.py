@@ -260,7 +260,8 @@ def _with_properties(net: FlatNet, opts: VerifyOptions, report: VerifyReport) ->
     if system is None or not system.properties:
         return report
     assert opts.budget is not None
-    results = check_properties(net, system, opts.values, opts.budget, opts.max_states)
+    results = check_properties(net, system, opts.values, opts.budget, opts.max_states,
+                               opts.reduction)
     verdict, why = report.verdict, report.why_undecided
     if any(r.holds is False for r in results):
         verdict = Verdict.VIOLATED
