@@ -1,0 +1,349 @@
+"""Run every engine and reduction of ``rssmc verify`` on one spec and compare the verdicts;
+replay every counterexample in the interpreter (tests/soundness/, bench/soundness.py).
+
+Engines (:data:`ENGINES`), each one call of ``rssm_dsl.verify.verify(net, VerifyOptions(...))``
+built as ``rssmc verify`` builds it (``commands/verify.py``: the flat net, the value plan of
+``dataplan.value_plan``, progress checked, strong fairness):
+
+* ``off``: the full exploration, the reference;
+* ``on``: stubborn sets; ``compositional``: the page-by-page check;
+* ``auto``: the default; ``auto-noslice``: ``VerifyOptions(slicing=False)`` (the option that
+  turns slicing off under auto; the CLI has no flag for it);
+* ``sliced``: auto with ``slice_after_states=1``, so that a net with several blocking groups
+  always takes the sliced path (the specs here are small: plain auto explores them whole).
+
+Compared, whenever two engines both decided them: safeness, deadlock freedom, progress, the
+set of subsystems that lose progress (when both say progress is lost), and every property of
+the spec. The properties are also checked on the whole net with slicing disabled
+(``props-whole``: ``userprops`` always slices by blocking groups, whatever the reduction), so
+that the sliced property check has something to be compared with. ``off`` is exhaustive, but
+the comparison is symmetric: any two decided answers that differ are a disagreement, so specs
+that ``off`` cannot finish still compare the engines that did. An engine that stays undecided
+within its limits is counted (``Outcome.undecided``), not a disagreement.
+
+Every counterexample an engine reports is replayed in the interpreter by forcing its
+firings, as ``rssmc simulate --replay`` does (``rssm_dsl.interp.replay.judge``): a deadlock
+must end with nothing enabled, an unsafe firing must double-mark a place, a lasso's cycle must
+come back to its marking without the subsystem iterating. A property's counterexample must end
+in a state that violates it, read from the interpreter's marking and variables
+(:func:`property_violated`). A replay that fails is a disagreement.
+
+:func:`compare_simulation` is the hook for violations found by simulation (a falsifier): each
+contradicts an engine that proved the property it violates.
+"""
+
+from __future__ import annotations
+
+import time
+import traceback
+from collections.abc import Callable, Iterable, Mapping
+from dataclasses import dataclass, field
+from pathlib import Path
+from typing import Any
+from unittest import mock
+
+from rssm_dsl.hpn.flat import FlatNet
+from rssm_dsl.hpn.flatten import flatten
+from rssm_dsl.pipeline import Compilation, compile_file
+from rssm_dsl.verify import VerifyOptions, verify
+from rssm_dsl.verify.budget import Budget
+from rssm_dsl.verify.dataplan import value_plan
+from rssm_dsl.verify.report import Counterexample, PropertyResult, VerifyReport
+
+ENGINES: dict[str, dict[str, Any]] = {
+    "off": {"reduction": "off"},
+    "on": {"reduction": "on"},
+    "compositional": {"reduction": "compositional"},
+    "auto": {"reduction": "auto"},
+    "auto-noslice": {"reduction": "auto", "slicing": False},
+    "sliced": {"reduction": "auto", "slice_after_states": 1},
+}
+PROPS_WHOLE = "props-whole"
+FIELDS = ("safe", "deadlock_free", "progress_ok")
+
+
+@dataclass(frozen=True)
+class Limits:
+    seconds: float = 10.0          # per engine
+    max_states: int = 400_000      # per exploration
+
+
+@dataclass
+class Outcome:
+    """One engine's answers on one spec (None: not decided)."""
+
+    engine: str
+    verdict: str
+    safe: bool | None
+    deadlock_free: bool | None
+    progress_ok: bool | None
+    lost: frozenset[str]
+    properties: dict[str, bool | None]
+    method: str
+    seconds: float
+    why: str | None
+    counterexamples: list[Counterexample] = field(default_factory=list)
+    property_cxs: dict[str, Counterexample] = field(default_factory=dict)
+
+    @property
+    def undecided(self) -> bool:
+        return (self.safe is None or self.deadlock_free is None or self.progress_ok is None
+                or any(v is None for v in self.properties.values()))
+
+
+@dataclass(frozen=True)
+class Disagreement:
+    what: str                      # "safe", "progress lost", "property p0", "replay", ...
+    detail: str
+
+    def __str__(self) -> str:
+        return f"{self.what}: {self.detail}"
+
+
+@dataclass
+class SpecResult:
+    name: str
+    outcomes: dict[str, Outcome]
+    disagreements: list[Disagreement]
+    replays: int = 0
+    error: str | None = None       # the spec did not compile (a generator bug) or a crash
+    seconds: float = 0.0
+
+
+@dataclass(frozen=True)
+class SimulationFinding:
+    """A violation found by simulation (the converse check): ``kind`` is "deadlock",
+    "unsafe", "progress" (with ``subsystem``) or "property" (with ``name``)."""
+
+    kind: str
+    subsystem: str | None = None
+    name: str | None = None
+    detail: str = ""
+
+
+# ------------------------------------------------------------------------ compile, verify
+
+
+def compile_text(text: str, path: Path) -> Compilation:
+    """Compile ``text`` as if it were the file ``path`` (not written)."""
+    return compile_file(path, overrides={path: text})
+
+
+def check_errors(comp: Compilation) -> list[str]:
+    return [f"{d.code} {d.span.location}: {d.message}" for d in comp.diagnostics if d.is_error]
+
+
+def _outcome(engine: str, report: VerifyReport, seconds: float) -> Outcome:
+    lost = frozenset({c.subsystem for c in report.progress if c.subsystem is not None}
+                     | set(report.progress_lost))
+    cxs = [*report.deadlocks, *([report.unsafe] if report.unsafe else []), *report.progress]
+    props = {p.name: p.holds for p in report.user_properties}
+    pcx = {p.name: p.counterexample for p in report.user_properties
+           if p.counterexample is not None}
+    return Outcome(engine, report.verdict.value, report.safe, report.deadlock_free,
+                   report.progress_ok, lost, props, report.method, seconds,
+                   report.why_undecided, cxs, pcx)
+
+
+def run_engine(comp: Compilation, net: FlatNet, engine: str, limits: Limits) -> Outcome:
+    options = VerifyOptions(max_states=limits.max_states, check_progress=True,
+                            values=value_plan(comp, net),
+                            budget=Budget(limits.seconds, None), **ENGINES[engine])
+    start = time.monotonic()
+    report = verify(net, options)
+    return _outcome(engine, report, time.monotonic() - start)
+
+
+def whole_net_properties(comp: Compilation, net: FlatNet,
+                         limits: Limits) -> dict[str, PropertyResult]:
+    """The spec's properties checked on the whole net: ``userprops`` with every subsystem
+    in one blocking group, so that it slices nothing."""
+    from rssm_dsl.verify import userprops
+
+    assert comp.system is not None
+    whole = [tuple(sorted(net.subsystems))]
+    with mock.patch.object(userprops, "blocking_groups", lambda _net: whole):
+        results = userprops.check_properties(net, comp.system, value_plan(comp, net),
+                                             Budget(limits.seconds, None), limits.max_states)
+    return {r.name: r for r in results}
+
+
+# ------------------------------------------------------------------------------ replays
+
+
+def _replay_cx(cx: Counterexample) -> Any:
+    from rssm_dsl.interp.replay import Counterexample as ReplayCx
+
+    return ReplayCx(cx.kind, tuple(t.name for t in cx.steps), cx.marking, cx.subsystem,
+                    tuple(t.name for t in cx.to_cycle), tuple(t.name for t in cx.cycle),
+                    cx.cycle_marking)
+
+
+def _simulate(comp: Compilation, names: list[str]) -> tuple[Any, Any, list[int], Any]:
+    """The interpreter forced through ``names``: (simulator, result, steps, runtime)."""
+    from rssm_dsl.interp import SimOptions, Simulator, build_runtime
+    from rssm_dsl.interp.replay import resolve_steps
+
+    rt = build_runtime(comp)
+    steps, bad = resolve_steps(rt.net, names, "counterexample")
+    if bad:
+        raise ValueError(bad[0].message)
+    sim = Simulator(rt, SimOptions(forced=steps, record_markings=True))
+    return sim, sim.run(), steps, rt
+
+
+def replay(comp: Compilation, cx: Counterexample) -> tuple[bool, str]:
+    """Does the interpreter, forced through ``cx``, reach the deadlock, unsafe firing or
+    lasso it claims? (``rssmc simulate --replay``'s judgement.)"""
+    from rssm_dsl.interp.replay import judge
+
+    rcx = _replay_cx(cx)
+    sim, result, steps, _ = _simulate(comp, rcx.sequence())
+    verdict = judge(rcx, steps, result, sim)
+    return verdict.reproduced, verdict.message
+
+
+def property_violated(comp: Compilation, name: str, cx: Counterexample) -> tuple[bool, str]:
+    """Does the interpreter, forced through ``cx``, end in a state that violates property
+    ``name``? ``always P``: P is false there; ``whenever P eventually Q``: P holds and Q does
+    not (a state from which Q is never reached is one where Q is false). ``SUB in BEH`` is
+    read from the marking (a place of BEH's page of SUB marked, as the verifier reads it), the
+    values from the subsystems' variables."""
+    from rssm_dsl.semantics.properties import Formula
+
+    assert comp.system is not None
+    prop = next(p for p in comp.system.properties if p.name == name)
+    sim, result, _, rt = _simulate(comp, [t.name for t in cx.steps])
+    if result.reason not in ("replayed", "finished", "deadlock"):
+        return False, f"the replay stopped ({result.reason}): {result.message}"
+    marked = sim.game.marking()
+    inside = {(p.subsystem, p.behaviour) for p in rt.net.places
+              if p.index in marked and p.behaviour is not None}
+
+    def in_behaviour(sub: str, beh: str) -> bool:
+        return (sub, beh) in inside
+
+    def value(sub: str, var: str) -> Any:
+        return rt.subsystems[sub].vars[var]
+
+    formulas = [Formula(comp.system, e) for e in prop.expressions]
+    truth = [f(in_behaviour, value) for f in formulas]
+    bad = (not truth[0]) if prop.kind == "always" else (truth[0] and not truth[1])
+    return bad, f"after {len(cx.steps)} firings the property reads {truth}"
+
+
+# ---------------------------------------------------------------------------- compare
+
+
+def compare(outcomes: Mapping[str, Outcome],
+            whole_props: Mapping[str, bool | None] | None = None) -> list[Disagreement]:
+    """Every answer two engines both decided differently."""
+    out: list[Disagreement] = []
+
+    def same(what: str, answers: Iterable[tuple[str, object]]) -> None:
+        decided = [(e, v) for e, v in answers if v is not None]
+        if len({repr(v) for _, v in decided}) > 1:
+            out.append(Disagreement(what, ", ".join(f"{e}={_show(v)}" for e, v in decided)))
+
+    for f in FIELDS:
+        same(f, ((e, getattr(o, f)) for e, o in outcomes.items()))
+    same("progress lost", ((e, sorted(o.lost)) for e, o in outcomes.items()
+                           if o.progress_ok is False))
+    names = sorted({n for o in outcomes.values() for n in o.properties})
+    for n in names:
+        answers = [(e, o.properties.get(n)) for e, o in outcomes.items()]
+        if whole_props is not None:
+            answers.append((PROPS_WHOLE, whole_props.get(n)))
+        same(f"property {n}", answers)
+    return out
+
+
+def _show(v: object) -> str:
+    if isinstance(v, list):
+        return "{" + ", ".join(map(str, v)) + "}"
+    return str(v)
+
+
+def compare_simulation(outcomes: Mapping[str, Outcome],
+                       findings: Iterable[SimulationFinding]) -> list[Disagreement]:
+    """The converse check: a violation the simulation found (and replayed) contradicts every
+    engine that proved the property it violates."""
+    out: list[Disagreement] = []
+    for f in findings:
+        for e, o in outcomes.items():
+            proved = {
+                "deadlock": o.deadlock_free is True,
+                "unsafe": o.safe is True,
+                "progress": o.progress_ok is True,
+                "property": f.name is not None and o.properties.get(f.name) is True,
+            }.get(f.kind, False)
+            if proved:
+                what = f.kind if f.kind != "property" else f"property {f.name}"
+                out.append(Disagreement(f"simulation: {what}",
+                                        f"{e} proved it, the simulation found {f.detail}"))
+    return out
+
+
+def _replays(comp: Compilation, outcomes: Mapping[str, Outcome],
+             ) -> tuple[int, list[Disagreement]]:
+    """Every counterexample replayed once (engines often give the same one)."""
+    seen: dict[tuple[Any, ...], tuple[bool, str]] = {}
+    out: list[Disagreement] = []
+    for e, o in outcomes.items():
+        jobs: list[tuple[str, Counterexample, Callable[[], tuple[bool, str]]]] = []
+        for cx in o.counterexamples:
+            jobs.append((cx.kind, cx, lambda cx=cx: replay(comp, cx)))
+        for n, cx in o.property_cxs.items():
+            jobs.append((f"property {n}", cx, lambda n=n, cx=cx: property_violated(comp, n, cx)))
+        for what, cx, run in jobs:
+            key = (what, cx.subsystem, tuple(t.name for t in cx.steps),
+                   tuple(t.name for t in cx.to_cycle), tuple(t.name for t in cx.cycle))
+            if key not in seen:
+                try:
+                    seen[key] = run()
+                except Exception as ex:            # a crash of the replay is a failed replay
+                    seen[key] = (False, f"the replay raised {type(ex).__name__}: {ex}")
+            ok, message = seen[key]
+            if not ok:
+                sub = f" of {cx.subsystem}" if cx.subsystem and cx.kind == "progress" else ""
+                out.append(Disagreement(f"replay {what}{sub}",
+                                        f"{e}'s counterexample ({len(cx.steps)} steps) does "
+                                        f"not replay: {message}"))
+    return len(seen), out
+
+
+def check_spec(text: str, name: str = "spec", limits: Limits | None = None,
+               engines: Iterable[str] = ENGINES, path: Path | None = None) -> SpecResult:
+    """Compile ``text``, run every engine, compare, replay."""
+    lim = limits or Limits()
+    start = time.monotonic()
+    where = path or Path(f"/nonexistent/soundness/{name}.rssm")
+    comp = compile_text(text, where) if path is None else compile_file(path)
+    errors = check_errors(comp)
+    if errors or comp.hpn is None:
+        return SpecResult(name, {}, [], error="does not check: " + "; ".join(errors[:3]),
+                          seconds=time.monotonic() - start)
+    try:
+        net = flatten(comp.hpn)
+        outcomes = {e: run_engine(comp, net, e, lim) for e in engines}
+        whole = None
+        if comp.system is not None and comp.system.properties:
+            whole = {n: r.holds for n, r in whole_net_properties(comp, net, lim).items()}
+        disagreements = compare(outcomes, whole)
+        count, bad = _replays(comp, outcomes)
+    except Exception:
+        return SpecResult(name, {}, [], error="crash: " + traceback.format_exc(limit=8),
+                          seconds=time.monotonic() - start)
+    return SpecResult(name, outcomes, [*disagreements, *bad], count,
+                      seconds=time.monotonic() - start)
+
+
+def summary_line(r: SpecResult) -> str:
+    if r.error:
+        return f"{r.name}: ERROR {r.error.splitlines()[0]}"
+    verdicts = ", ".join(f"{e}={o.verdict}" for e, o in r.outcomes.items())
+    return f"{r.name}: {verdicts}; {len(r.disagreements)} disagreement(s), {r.replays} replays"
+
+
+__all__ = ["ENGINES", "Disagreement", "Limits", "Outcome", "SimulationFinding", "SpecResult",
+           "check_spec", "compare", "compare_simulation"]
