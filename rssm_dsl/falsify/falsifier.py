@@ -26,7 +26,7 @@ from rssm_dsl.verify.budget import Budget, LimitReached
 from rssm_dsl.verify.netbits import NetBits
 
 SEEDS_PER_SEED = 1000
-MIN_RUN = 0.2          # seconds: the wall-clock time a run may take at least
+MIN_RUN = 0.2          # seconds: a run may fire for this long at least
 
 
 @dataclass(frozen=True)
@@ -36,10 +36,10 @@ class FalsifyOptions:
     max_runs: int = 12
     steps_per_run: int = 1_000_000    # firings per run at most
     until: float = 60.0               # simulated seconds per run at most
-    run_share: float = 1 / 3          # of ``seconds``: the wall-clock time of a run at most
+    run_share: float = 1 / 2          # of ``seconds``: a run's wall-clock time at most
     check_progress: bool = True       # look for stalls (E809) too
-    confirm_states: int = 100_000     # markings explored at most to confirm a stall
-    confirm_seconds: float = 5.0      # ... and the time it may take
+    confirm_states: int = 50_000      # markings explored at most to confirm a stall
+    confirm_seconds: float = 2.0      # ... and the time it may take
     device_options: dict[str, dict[str, str]] = field(default_factory=dict)
 
 
@@ -138,10 +138,10 @@ def falsify(comp: Compilation, net: FlatNet, budget: Budget,
         for r in range(opts.max_runs):
             if time.monotonic() >= deadline or budget.cancelled or budget.stop is not None:
                 break
-            ends = min(deadline, time.monotonic() + max(MIN_RUN, opts.run_share * opts.seconds))
             try:
                 out = random_run(comp, run_seed(opts.seed, r), opts.steps_per_run, opts.until,
-                                 ends, stop_requested, opts.device_options)
+                                 max(MIN_RUN, opts.run_share * opts.seconds), deadline,
+                                 stop_requested, opts.device_options)
             except RunSetupError as e:
                 return result(skipped=f"the specification cannot run: {e}")
             runs += 1

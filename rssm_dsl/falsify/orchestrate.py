@@ -6,11 +6,14 @@
    (a violation the engines found is reported as it is, without runs);
 2. else the random runs, for ``SLICE`` seconds at most (``SHARE`` of the time limit if that is
    less). A violation they find and the net confirms is the verdict (VIOLATED with its
-   counterexample); the engines' first try is what the report says of the rest;
+   counterexample); the exhaustive engines then run again for ``AFTER_FOUND`` seconds at
+   most, for the rest of the picture (the shortest counterexamples, the other properties);
 3. else the exhaustive engines again, with the rest of the budget.
 
 So a specification the engines decide in their first second costs ``CHECK`` seconds more,
-one they do not decide at most ``FIRST_TRY + SLICE``.
+one they do not decide at most ``FIRST_TRY + SLICE`` more (and the confirmation of what a run
+found, ``FalsifyOptions.confirm_seconds`` at most), and a violation the runs find is reported
+within ``FIRST_TRY + SLICE + AFTER_FOUND`` seconds and the confirmation.
 """
 
 from __future__ import annotations
@@ -27,6 +30,7 @@ from rssm_dsl.verify.report import Verdict, VerifyReport
 FIRST_TRY = 1.0       # seconds of the exhaustive engines before the random runs
 SLICE = 2.0           # seconds of random runs when the first try decided nothing
 CHECK = 0.25          # seconds of random runs after a proof (the consistency check)
+AFTER_FOUND = 10.0    # seconds of the engines again once the runs found a violation
 SHARE = 0.05          # of the time limit, at most, for each of the above
 
 
@@ -55,14 +59,24 @@ def verify_with_simulation(net: FlatNet, comp: Compilation, options: VerifyOptio
         return apply(first, net, falsify(comp, net, budget, dataclasses.replace(
             fopts, seconds=share(CHECK))))
     found = falsify(comp, net, budget, dataclasses.replace(fopts, seconds=share(SLICE)))
-    if found.finding is not None:
-        if cap.hit:
-            first = dataclasses.replace(first, stop=None, why_undecided=(
-                f"not decided by the exhaustive engines' first try ({first_try:g} s), not "
-                "resumed once the random runs had found a violation"), notes=tuple(
-                f"the exhaustive engines' first try ({first_try:g} s): {n}"
-                for n in first.notes))
+    if found.finding is None:
+        if not cap.hit:     # the engines' own limits (--max-states) left it open
+            return apply(first, net, found)
+        return apply(verify(net, options), net, found)
+    if not cap.hit:
         return apply(first, net, found)
-    if not cap.hit:         # the engines' own limits (--max-states) left it open
-        return apply(first, net, found)
-    return apply(verify(net, options), net, found)
+    # a violation is known: the engines get AFTER_FOUND seconds more for the rest of the
+    # picture (the shortest counterexamples, the other properties)
+    with budget.capped(AFTER_FOUND) as again:
+        second = verify(net, options)
+    if again.hit and budget.stop is None:
+        second = _cut(second, f"the {AFTER_FOUND:g} s the exhaustive engines were given once "
+                              "the random runs had found a violation")
+    return apply(second, net, found)
+
+
+def _cut(report: VerifyReport, given: str) -> VerifyReport:
+    """A report of engines that the falsifier's schedule stopped (not the run's limits):
+    that is why what they did not decide is not decided."""
+    return dataclasses.replace(report, stop=None, why_undecided=f"not decided within {given}",
+                               notes=tuple(f"within {given}: {n}" for n in report.notes))

@@ -99,11 +99,12 @@ def random_devices(comp: Compilation,
 
 
 def random_run(comp: Compilation, seed: int, max_steps: int, until: float,
-               deadline: float, stop_requested: Callable[[], bool],
+               seconds: float, deadline: float, stop_requested: Callable[[], bool],
                device_options: dict[str, dict[str, str]] | None = None,
                stall_periods: int = STALL_PERIODS) -> RunOutcome:
     """Run the specification once with ``seed``, until ``max_steps`` firings, simulated time
-    ``until``, a stop of the run (deadlock, stall, error, termination), the wall-clock
+    ``until``, a stop of the run (deadlock, stall, error, termination), ``seconds`` of
+    wall-clock time from its first firing (the set-up not counted), the wall-clock
     ``deadline`` (``time.monotonic()``) or ``stop_requested()``."""
     options: dict[str, dict[str, str]] = {"*": {"seed": str(seed)}}
     for pattern, given in (device_options or {}).items():
@@ -116,8 +117,10 @@ def random_run(comp: Compilation, seed: int, max_steps: int, until: float,
     except SetupError as e:
         raise RunSetupError("; ".join(f"{d.code} {d.message}" for d in e.diagnostics)) from e
 
+    ends = deadline
+
     def watch(snapshot: Snapshot) -> None:
-        if time.monotonic() > deadline or stop_requested():
+        if time.monotonic() > ends or stop_requested():
             raise StopSimulation(OUT_OF_TIME, "the falsifier's time is up")
 
     sequence: array[int] = array("i")
@@ -125,6 +128,7 @@ def random_run(comp: Compilation, seed: int, max_steps: int, until: float,
                                    until=until, macros=False, progress=watch,
                                    progress_interval=0.05, stall_periods=stall_periods))
     _recording(sim.fire, sequence)
+    ends = min(deadline, time.monotonic() + seconds)
     result = sim.run()
     return RunOutcome(seed, result.reason, result.message, result.steps, result.time,
                       sequence, tuple(t.name for t in rt.net.transitions),
