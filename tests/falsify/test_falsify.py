@@ -203,3 +203,14 @@ def test_a_correct_spec_keeps_its_verdict_and_says_what_the_runs_did() -> None:
 def test_bad_device_option_is_a_usage_error() -> None:
     r = rssmc("verify", RARE_END, "--device-option", "nonsense")
     assert r.returncode == 2 and "--device-option" in r.stderr
+
+
+@pytest.mark.parametrize("spec", ["rare_end.rssm", "rare_end_range.rssm"])
+def test_the_exhaustive_engines_agree_with_the_runs(spec: str) -> None:
+    """Whatever the runs find, the engines alone find too (the int condition is a free
+    choice; the range's values are tracked in the state, the dial's draws included)."""
+    _, runs = found(SPECS / spec)
+    assert runs.finding is not None and runs.finding.subsystem == "line.c"
+    r = rssmc("verify", SPECS / spec, "--no-simulation", "--format", "json")
+    report = json.loads(r.stdout)
+    assert report["verdict"] == "violated" and report["progress_ok"] is False, r.stdout
