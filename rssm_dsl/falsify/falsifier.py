@@ -144,6 +144,8 @@ def falsify(comp: Compilation, net: FlatNet, budget: Budget,
                                  stop_requested, opts.device_options)
             except RunSetupError as e:
                 return result(skipped=f"the specification cannot run: {e}")
+            except Exception as e:     # a bug of the interpreter must not stop the proof
+                return result(skipped=f"the interpreter failed: {type(e).__name__}: {e}")
             runs += 1
             firings += out.steps
             try:

@@ -24,6 +24,7 @@ from rssm_dsl.pipeline import Compilation
 from rssm_dsl.semantics.types import ArrayT, RecordT, Type, finite_domain
 
 RANDOM_DEVICE = "rssm_stdlib.devices.random_values:RandomDevice"
+CONSTANT_DEVICE = "rssm_stdlib.devices.constant:ConstantDevice"
 OUT_OF_TIME = "out-of-time"       # the reason of a run the falsifier's deadline stopped
 
 
@@ -87,7 +88,7 @@ def random_devices(comp: Compilation,
     """The devices bound to RandomDevice: those with an output of finite type (or a part of
     one) and those given a ``values`` option. The others (float measurements: a simulated
     arm, wheels echoing their set points) keep their own binding, which the runs need to
-    move at all."""
+    move at all; one without a binding measures its initial values (ConstantDevice)."""
     assert comp.system is not None
     out: dict[str, str] = {}
     for d in comp.system.devices():
@@ -95,6 +96,8 @@ def random_devices(comp: Compilation,
                     if fnmatchcase(d.id, pattern))
         if given or any(_drawn(b.type) for b in d.outputs):
             out[d.id] = RANDOM_DEVICE
+        elif d.binding is None:        # nothing to run it with: its initial values
+            out[d.id] = CONSTANT_DEVICE
     return out
 
 
