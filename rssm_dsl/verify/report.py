@@ -259,6 +259,36 @@ class SimulationSummary:
 
 
 @dataclass(frozen=True)
+class Unconfirmed:
+    """A violation found in a slice (verify/sliced.py) that was not lifted to a firing
+    sequence of the whole net. A slice over-approximates its group (its environment may
+    write at any time or never, with any value), so it is reported as what it is: found in
+    the slice of ``group``, not confirmed in the whole net, ``why``, and ``tried`` what
+    was tried; never as a violation. ``counterexample`` is the slice's firing sequence (the
+    environment's moves named as such)."""
+
+    kind: str                      # deadlock (the group stuck) | progress | unsafe
+    what: str                      # "a loss of progress of arm.c", "a stuck group", ...
+    group: tuple[str, ...]
+    why: str
+    tried: str
+    counterexample: Counterexample
+
+    def headline(self) -> str:
+        return (f"{self.what} found in the slice of {', '.join(self.group)}, not confirmed "
+                f"in the whole net ({self.why})")
+
+    def lines(self) -> list[str]:
+        return [self.headline(), f"    tried: {self.tried}",
+                "    the slice's firing sequence:", *self.counterexample.lines()]
+
+    def to_json(self) -> dict[str, Any]:
+        return {"kind": self.kind, "what": self.what, "group": list(self.group),
+                "why": self.why, "tried": self.tried,
+                "counterexample": self.counterexample.to_json()}
+
+
+@dataclass(frozen=True)
 class VerifyReport:
     system: str
     verdict: Verdict
@@ -310,6 +340,8 @@ class VerifyReport:
     groups: tuple[tuple[tuple[str, ...], bool | None], ...] = field(default=())
     # the random runs of the interpreter (rssm_dsl.falsify); None: not asked for
     simulation: SimulationSummary | None = None
+    # violations found in slices and not confirmed in the whole net (verify/sliced.py)
+    unconfirmed: tuple[Unconfirmed, ...] = field(default=())
 
     @property
     def exit_code(self) -> int:
@@ -388,6 +420,7 @@ class VerifyReport:
             "limits": {"time_seconds": self.time_limit, "memory_bytes": self.max_memory},
             "peak_memory_bytes": self.peak_memory,
             "groups": [{"subsystems": list(g), "stuck": stuck} for g, stuck in self.groups],
+            "unconfirmed": [u.to_json() for u in self.unconfirmed],
             "user_properties": [p.to_json() for p in self.user_properties],
             "simulation": self.simulation.to_json() if self.simulation is not None
             else None,
@@ -448,11 +481,9 @@ def _summary_lines(r: VerifyReport) -> list[str]:
     return out
 
 
-def render_text(report: VerifyReport, max_invariants: int = 20) -> str:
-    r = report
-    out = [f"system {r.system}: {r.headline()}", *_summary_lines(r)]
-    for note in r.notes:
-        out.append(f"  note: {note}")
+def _violation_lines(r: VerifyReport) -> list[str]:
+    """The counterexamples, and the violations found in slices and not confirmed."""
+    out: list[str] = []
     if r.unsafe is not None:
         out.append("")
         out.append("unsafe firing:")
@@ -470,6 +501,18 @@ def render_text(report: VerifyReport, max_invariants: int = 20) -> str:
         out.append(f"loss of progress: {name} can reach a state from which it never completes "
                    "an iteration again (shown by the compositional check; no firing sequence "
                    "was extracted within the limits)")
+    for u in r.unconfirmed:
+        out.append("")
+        out += u.lines()
+    return out
+
+
+def render_text(report: VerifyReport, max_invariants: int = 20) -> str:
+    r = report
+    out = [f"system {r.system}: {r.headline()}", *_summary_lines(r)]
+    for note in r.notes:
+        out.append(f"  note: {note}")
+    out += _violation_lines(r)
     out.append("")
     n = len(r.invariants)
     head = f"place invariants: {n}" + ("" if r.invariants_complete else " (incomplete)")

@@ -26,24 +26,39 @@ verdict stays open.
 from __future__ import annotations
 
 import dataclasses
+import functools
 import time
 from collections.abc import Callable, Collection, Sequence
 from typing import TYPE_CHECKING
 
+from rssm_core.records import dataclass
 from rssm_dsl.hpn.flat import FlatNet, FlatTransition, Role
 from rssm_dsl.verify.budget import Budget
+from rssm_dsl.verify.datanet import track_new
 from rssm_dsl.verify.progress import live_places
 from rssm_dsl.verify.report import (
     Counterexample,
+    Unconfirmed,
     Verdict,
     VerifyReport,
     marking_labels,
     marking_where,
 )
-from rssm_dsl.verify.slicing import ReplayError, Slice, replay_group, run_outside, slice_net
+from rssm_dsl.verify.slicing import (
+    OUTSIDE_STATES,
+    Channel,
+    ReplayError,
+    Slice,
+    channels,
+    replay_group,
+    run_outside,
+    slice_net,
+)
 from rssm_dsl.verify.stalls import StallTest
+from rssm_dsl.verify.valuenet import track_values
 
 if TYPE_CHECKING:
+    from rssm_dsl.verify.dataplan import ValuePlan
     from rssm_dsl.verify.verifier import VerifyOptions
 
 Verifier = Callable[[FlatNet, "VerifyOptions"], VerifyReport]
@@ -52,6 +67,12 @@ STUBBORN_STATES = 100_000   # a slice's stubborn-set search at most
 SMALL_SLICE = 10_000        # a slice explored whole when it has no more states
 COMPOSE_SHARE = 1 / 2       # of the time left, for each later try on a slice
 MANY = 4                    # subsystems: a group of this many is composed first
+FEED_STATES = 5_000         # markings searched for the outside to send what the slice's
+#                             environment wrote
+LAYER = 64                  # markings kept per step when a lifted sequence is checked
+#                             against the values (_Whole.realise)
+FUTURE_STATES = 50_000      # markings explored at most to confirm that a subsystem never
+#                             iterates again in the whole net (values tracked)
 
 
 def verify_sliced(net: FlatNet, groups: Sequence[tuple[str, ...]], opts: VerifyOptions,
@@ -80,8 +101,40 @@ def verify_sliced(net: FlatNet, groups: Sequence[tuple[str, ...]], opts: VerifyO
                 first.verdict if first.verdict is Verdict.VIOLATED else Verdict.INCONCLUSIVE),
                 notes=(*r.notes, *first.notes), why_undecided=r.why_undecided)
         found[i] = r
+    whole = _Whole(net, opts.values)
+    refined: list[str] = []
+    for i, r in list(found.items()):
+        sl = slices[i]
+        if not sl.cut or budget.stop is not None or not _violations(r):
+            continue
+        probe = _Lifted(net, whole)
+        probe.lift_all(sl, r)
+        if not probe.failed:
+            continue
+        # a violation the whole net does not confirm, in a slice that cut free channels
+        # inside its group (their values, there, are free): the slice again with them whole
+        sl = slice_net(net, tuple(sorted(sl.keep)), cut=False)
+        opts_i = opts if check_progress else quick
+        if check_progress and opts.fairness == "strong" and stalls.together(sl.keep):
+            r = _by_deadlocks(sl, quick, budget, verify)
+        else:
+            r = _decide(sl, opts_i, verify)
+        slices[i], found[i] = sl, r
+        refined.append(f"the slice of {_names(sl.keep)} found {len(probe.failed)} "
+                       "violation(s) the whole net does not confirm; it was verified again "
+                       "with the free channels inside the group whole ("
+                       + ", ".join(slices_cut(probe)) + ")")
     parts = [(slices[i], found[i]) for i in range(len(slices)) if i in found]
-    return _combine(net, groups, parts, budget, start, check_progress)
+    return _combine(net, groups, parts, budget, start, check_progress, whole, refined)
+
+
+def slices_cut(lifted: _Lifted) -> list[str]:
+    """The channels the slices of ``lifted``'s failures cut (for a note)."""
+    return list(dict.fromkeys(c for u in lifted.cut_by for c in u))
+
+
+def _violations(r: VerifyReport) -> bool:
+    return bool(r.deadlocks or r.progress or r.unsafe is not None)
 
 
 def _decide(sl: Slice, opts: VerifyOptions, verify: Verifier) -> VerifyReport:
@@ -144,15 +197,317 @@ def _by_deadlocks(sl: Slice, quick: VerifyOptions, budget: Budget,
     return dataclasses.replace(r, progress_requested=True)
 
 
+@dataclass(frozen=True)
+class _Node:
+    """A marking of the whole net with its values (``_Whole``), and how it was reached;
+    ``skip``: steps of the group's sequence to pass over when their turn comes (the end of
+    a receive that found no new data here where the slice took some)."""
+
+    marking: frozenset[int]
+    parent: _Node | None
+    step: int
+    skip: frozenset[int] = frozenset()
+
+    def path(self) -> list[int]:
+        """The steps (of the tracked net) from the root to here."""
+        out: list[int] = []
+        at: _Node | None = self
+        while at is not None and at.step >= 0:
+            out.append(at.step)
+            at = at.parent
+        return out[::-1]
+
+
+class _Whole:
+    """The whole net with the finite values the slices tracked (valuenet.py). The replay
+    of a slice's steps (``slicing.replay_group``) moves tokens only; here a lifted firing
+    sequence is checked against the data: each step must have a variant whose values hold,
+    and a claim that a subsystem never iterates again must hold with those values. None of
+    this is needed when no value is tracked (``net`` is None)."""
+
+    def __init__(self, source: FlatNet, plan: ValuePlan | None) -> None:
+        t = track_values(track_new(source), plan) if plan is not None else None
+        self.source = source
+        self.net: FlatNet | None = t.net if t is not None and t.values else None
+        self.origin: tuple[int, ...] = t.origin if t is not None else ()
+        self.place_origin: tuple[int | None, ...] = t.place_origin if t is not None else ()
+        self.variants: dict[int, list[int]] = {}
+        if t is not None and self.net is not None:
+            for u, o in enumerate(t.origin):
+                self.variants.setdefault(o, []).append(u)
+        # siblings, steps that lead to the same place and decide no control flow: another
+        # data case of a partial function (and the end of that case), a non-blocking send
+        # that starts on an empty buffer or overwrites a full one
+        self.siblings: dict[int, list[int]] = {t.index: [] for t in source.transitions}
+        case_ops = {p for t in source.transitions if t.role is Role.CASE for p in t.post}
+        by: dict[tuple[str | None, str, tuple[int, ...]], list[int]] = {}
+        for tr in source.transitions:
+            key: tuple[str | None, str, tuple[int, ...]] | None = None
+            if tr.role is Role.CASE:
+                key = (tr.subsystem, "case", tr.pre)
+            elif tr.role is Role.SEND:
+                key = (tr.subsystem, "send", tr.post)
+            elif tr.role is Role.STRUCTURE and len(tr.pre) == 1 and tr.pre[0] in case_ops:
+                key = (tr.subsystem, "case end", tr.post)
+            if key is not None:
+                by.setdefault(key, []).append(tr.index)
+        for alike in by.values():
+            for x in alike:
+                self.siblings[x] = [u for u in alike if u != x]
+        self.value_places = frozenset(
+            p.index for p in (self.net.places if self.net is not None else ())
+            if (p.channel or "").startswith("value "))
+
+    def steps(self, nodes_path: Sequence[int]) -> tuple[FlatTransition, ...]:
+        """A path of the tracked net as the flat net's transitions."""
+        return tuple(self.source.transitions[self.origin[u]] for u in nodes_path)
+
+    def _fire(self, node: _Node, raws: Sequence[int], out: dict[frozenset[int], _Node],
+              skip: frozenset[int] | None = None) -> None:
+        assert self.net is not None
+        rule = self.net.rule
+        for raw in raws:
+            for u in self.variants.get(raw, ()):
+                if node.marking.issuperset(rule.pre[u]):
+                    m2 = node.marking.difference(rule.consume[u]).union(rule.produce[u])
+                    out.setdefault(m2, _Node(m2, node, u,
+                                             node.skip if skip is None else skip))
+
+    def search(self, starts: Sequence[_Node], movers: Collection[str | None],
+               goal: Callable[[frozenset[int]], bool], max_states: int,
+               every_value: bool = False) -> list[_Node]:
+        """Breadth-first over the moves of ``movers`` from ``starts`` (together): the
+        markings where ``goal`` holds (at most LAYER; not searched beyond). With
+        ``every_value``, the first one of each valuation, searched on and beyond (up to
+        ``max_states``) for the others: what the outside sends may be any value it can,
+        a later send overwriting an earlier one."""
+        assert self.net is not None
+        rule = self.net.rule
+        moves = [t.index for t in self.net.transitions if t.subsystem in movers]
+        seen = {n.marking for n in starts}
+        frontier = list(starts)
+        found: dict[object, _Node] = {}
+
+        def keep(n: _Node) -> None:
+            key = n.marking & self.value_places if every_value else n.marking
+            found.setdefault(key, n)
+
+        for n in starts:
+            if goal(n.marking):
+                keep(n)
+        while frontier and len(seen) < max_states and (every_value or len(found) < LAYER):
+            nxt: list[_Node] = []
+            for n in frontier:
+                if goal(n.marking) and not every_value:
+                    continue
+                for u in moves:
+                    if n.marking.issuperset(rule.pre[u]):
+                        m2 = n.marking.difference(rule.consume[u]).union(rule.produce[u])
+                        if m2 in seen:
+                            continue
+                        seen.add(m2)
+                        child = _Node(m2, n, u, n.skip)
+                        if goal(m2):
+                            keep(child)
+                        if every_value or not goal(m2):
+                            nxt.append(child)
+            frontier = nxt
+        return list(found.values())[:LAYER]
+
+    def replay(self, sl: Slice, steps: Sequence[int]) -> list[_Node]:
+        """The group's moves ``steps`` (the flat net's, from the slice's sequence) in the
+        whole net with the values tracked: where the slice took data its environment wrote,
+        the producer outside (and what feeds it) runs until it has sent some; a step not
+        enabled is replaced by a sibling (another data case, an overwriting send, a receive
+        that finds nothing new when nothing comes), or the rest of the system moves first
+        (a bounded search). The markings reached (at most LAYER); ReplayError when a step
+        cannot be taken."""
+        assert self.net is not None
+        net = self.source
+        chans = {c.name: c for c in channels(net)}
+        feeds = {c.name: _upstream(net, c, sl.keep, chans) for c in chans.values()
+                 if c.free and c.consumer in sl.keep and c.producer not in sl.keep}
+        layer = [self.root()]
+        everyone = {t.subsystem for t in net.transitions}
+        outside = everyone - set(sl.keep)
+        # nodes alike for the group (its places, the channels', the values) are one: what
+        # the rest does differently is searched again when it matters
+        theirs = frozenset(p.index for p in self.net.places
+                           if p.subsystem is not None and p.subsystem not in sl.keep)
+        for i, t in enumerate(steps):
+            tr = net.transitions[t]
+            nxt: dict[frozenset[int], _Node] = {}
+            passed = [n for n in layer if t in n.skip]
+            for n in passed:
+                nxt.setdefault(n.marking, _Node(n.marking, n.parent, n.step, n.skip - {t}))
+            layer = [n for n in layer if t not in n.skip]
+            if not layer:
+                layer = list(nxt.values())
+                continue
+            chan = chans.get(tr.channel or "")
+            if chan is not None and tr.role is Role.RECEIVE and tr.channel in feeds and (
+                    chan.full in tr.pre or chan.empty in tr.pre):
+                self._receive(layer, t, chan, feeds[chan.name], nxt)
+            else:
+                for n in layer:
+                    self._fire(n, [t], nxt)
+                if not nxt:
+                    for n in layer:
+                        self._fire(n, self.siblings[t], nxt)
+                if not nxt and tr.subsystem is None and _waits_outside(net, t, sl.keep):
+                    # plumbing waiting for the outside too (an agent's end): passed over
+                    continue
+                if not nxt:
+                    ready = self.search(layer, outside, functools.partial(self._enabled, t=t),
+                                        OUTSIDE_STATES)
+                    for n in ready:
+                        self._fire(n, [t, *self.siblings[t]], nxt)
+            if not nxt:
+                raise ReplayError(
+                    f"with the values tracked, the whole net cannot take step {i + 1} of "
+                    f"{len(steps)} of the group, {tr.label}, even after the other "
+                    "subsystems' moves")
+            alike: dict[frozenset[int], _Node] = {}
+            for n in nxt.values():
+                alike.setdefault(n.marking - theirs, n)
+            layer = list(alike.values())[:LAYER]
+        return layer
+
+    def _receive(self, layer: list[_Node], t: int, chan: Channel, feeders: set[str | None],
+                 nxt: dict[frozenset[int], _Node]) -> None:
+        """A non-blocking receive from the outside, whichever the slice took: nothing new
+        (when the channel is empty), or what the outside sends, any value it can."""
+        net = self.source
+        tr = net.transitions[t]
+        took = chan.full in tr.pre
+        take = [t] if took else self._variant_pre(t, chan.empty, chan.full)
+        nonew = self._variant_pre(t, chan.full, chan.empty) if took else [t]
+        end = _end_of_take(net, take[0]) if take else -1
+        for n in layer:
+            self._fire(n, nonew, nxt, n.skip | {end} if took else None)
+        if not take:
+            return
+        empty = [n for n in layer if chan.full not in n.marking]
+        fed = self.search(empty, feeders, _has(chan.full), FEED_STATES,
+                          every_value=True) if empty else []
+        taken: dict[frozenset[int], _Node] = {}
+        for n in [*fed, *(n for n in layer if chan.full in n.marking)]:
+            self._fire(n, take, taken)
+        if took:
+            nxt.update(taken)
+        else:               # the slice found nothing new: the end of the take now
+            for n in taken.values():
+                self._fire(n, [end], nxt)
+
+    def _variant_pre(self, t: int, drop: int, add: int) -> list[int]:
+        """The step of ``t``'s subsystem taking ``add`` instead of ``drop`` from the same
+        places."""
+        tr = self.source.transitions[t]
+        want = frozenset(tr.pre) - {drop} | {add}
+        return [u.index for u in self.source.transitions
+                if u.subsystem == tr.subsystem and frozenset(u.pre) == want]
+
+    def _enabled(self, m: frozenset[int], *, t: int) -> bool:
+        assert self.net is not None
+        pre = self.net.rule.pre
+        return any(m.issuperset(pre[u]) for r in (t, *self.siblings[t])
+                   for u in self.variants.get(r, ()))
+
+    def root(self) -> _Node:
+        assert self.net is not None
+        return _Node(frozenset(self.net.initial), None, -1)
+
+    def raw(self, marking: frozenset[int]) -> frozenset[int]:
+        """A marking of the tracked net as the flat net's (new(x)'s and the values' places
+        left out)."""
+        origin = self.place_origin
+        return frozenset(q for p in marking if (q := origin[p]) is not None)
+
+    def realise(self, steps: Sequence[int], starts: Sequence[_Node],
+                ) -> tuple[list[_Node], int | None]:
+        """The markings (at most ``LAYER`` per step) reached from ``starts`` by ``steps``
+        (the flat net's transitions, or a sibling: another data case) with the values
+        tracked; the index of the first step that cannot be taken (the list is then
+        empty)."""
+        layer = list(starts)
+        for i, raw in enumerate(steps):
+            nxt: dict[frozenset[int], _Node] = {}
+            for node in layer:
+                self._fire(node, [raw], nxt)
+            if not nxt:
+                for node in layer:
+                    self._fire(node, self.siblings[raw], nxt)
+            if not nxt:
+                return [], i
+            layer = list(nxt.values())[:LAYER]
+        return layer, None
+
+    def moves(self, marking: frozenset[int], subsystems: Collection[str | None]) -> bool:
+        """Some transition of ``subsystems`` is enabled in ``marking``."""
+        assert self.net is not None
+        pre = self.net.rule.pre
+        return any(t.subsystem in subsystems and marking.issuperset(pre[t.index])
+                   for t in self.net.transitions)
+
+    def iterates(self, start: frozenset[int], subsystem: str) -> bool | None:
+        """From ``start``, can ``subsystem`` complete an iteration (an ITERATION
+        transition of it enabled somewhere)? None: not decided within FUTURE_STATES."""
+        assert self.net is not None
+        rule = self.net.rule
+        iteration = [t.index for t in self.net.transitions
+                     if t.subsystem == subsystem and t.role is Role.ITERATION]
+        seen = {start}
+        frontier = [start]
+        while frontier:
+            nxt = []
+            for m in frontier:
+                if any(m.issuperset(rule.pre[u]) for u in iteration):
+                    return True
+                for u in range(len(rule.pre)):
+                    if m.issuperset(rule.pre[u]):
+                        m2 = m.difference(rule.consume[u]).union(rule.produce[u])
+                        if m2 not in seen:
+                            if len(seen) >= FUTURE_STATES:
+                                return None
+                            seen.add(m2)
+                            nxt.append(m2)
+            frontier = nxt
+        return False
+
+    def lasso(self, starts: Sequence[_Node], to_cycle: Sequence[int],
+              cycle: Sequence[int]) -> tuple[_Node, _Node, _Node] | None:
+        """``to_cycle`` then ``cycle`` from one of ``starts``, the cycle back to the marking
+        it started from (with its values), in one pass or, after one more, in the next:
+        the start, the node where the cycle starts and where it ends; None."""
+        for start in starts[:LAYER // 4]:
+            ends, _ = self.realise(to_cycle, [start])
+            for at in ends[:LAYER // 4]:
+                after, _ = self.realise(cycle, [at])
+                back = next((n for n in after if n.marking == at.marking), None)
+                if back is not None:
+                    return start, at, back
+                for again in after[:LAYER // 4]:
+                    twice, _ = self.realise(cycle, [again])
+                    back = next((n for n in twice if n.marking == again.marking), None)
+                    if back is not None:
+                        return start, again, back
+        return None
+
+    def label(self, net: FlatNet, steps: Sequence[int], i: int) -> str:
+        return f"step {i + 1} of {len(steps)}, {net.transitions[steps[i]].label}"
+
+
 class _Lifted:
     """The violations of the slices as the whole net's firing sequences."""
 
-    def __init__(self, net: FlatNet) -> None:
+    def __init__(self, net: FlatNet, whole: _Whole | None = None) -> None:
         self.net = net
+        self.whole = whole if whole is not None else _Whole(net, None)
         self.deadlocks: list[Counterexample] = []
         self.progress: list[Counterexample] = []
         self.unsafe: Counterexample | None = None
-        self.failed: list[str] = []
+        self.failed: list[Unconfirmed] = []
+        self.cut_by: list[tuple[str, ...]] = []
 
     def _steps(self, steps: Sequence[int]) -> tuple[FlatTransition, ...]:
         return tuple(self.net.transitions[t] for t in steps)
@@ -161,11 +516,19 @@ class _Lifted:
         return marking_labels(self.net, m)
 
     def slice_deadlock(self, sl: Slice, cx: Counterexample) -> None:
+        if self.whole.net is not None:
+            self._deadlock_with_values(sl, cx)
+            return
         net = self.net
         steps, m = replay_group(sl, sl.whole_steps(cx.steps))
         stuck = [s for s in sl.net.subsystems if live_places(net, s) & _mask(m)]
         if not stuck:
             return                  # the group has finished; the rest decides
+        rule = net.rule
+        if any(t.subsystem in sl.keep and m.issuperset(rule.pre[t.index])
+               for t in net.transitions):
+            raise ReplayError("after the group's steps, the group can still move in the "
+                              "whole net")
         to_cycle, cycle, stopped = run_outside(net, m, sl.keep)
         if stopped:
             end = _fire(net, m, to_cycle)
@@ -180,6 +543,48 @@ class _Lifted:
                 to_cycle=self._steps(to_cycle), cycle=self._steps(cycle),
                 cycle_marking=self._labels(at_cycle)))
 
+    def _deadlock_with_values(self, sl: Slice, cx: Counterexample) -> None:
+        """A stuck group lifted with the values tracked (``_Whole.replay``). The group's
+        moves wait on nothing outside it (its channels to the rest are free, and what it
+        reads from them it reads whatever the value), so once none of them is enabled in
+        the whole net, none ever is: the group is stuck for good."""
+        w, net = self.whole, self.net
+        ends = w.replay(sl, sl.whole_steps(cx.steps))
+        live = {s: live_places(net, s) for s in sl.net.subsystems}
+        at = [n for n in ends if not w.moves(n.marking, sl.keep)]
+        if not at:
+            raise ReplayError("with the values tracked, the group can still move in the "
+                              "whole net after its steps")
+        m = w.raw(at[0].marking)
+        stuck = [s for s in sl.net.subsystems if live[s] & _mask(m)]
+        if not stuck:
+            return                  # the group has finished; the rest decides
+        to_cycle, cycle, stopped = run_outside(net, m, sl.keep)
+        if stopped:
+            everyone = {t.subsystem for t in net.transitions}
+            ends, _ = w.realise(to_cycle, at)
+            end = next((n for n in ends if not w.moves(n.marking, everyone)), None)
+            if end is None:
+                raise ReplayError("with the values tracked, the rest of the system does not "
+                                  "stop where it stops with tokens only")
+            self.deadlocks.append(Counterexample("deadlock", w.steps(end.path()),
+                                                 self._labels(w.raw(end.marking))))
+            return
+        found = w.lasso(at, to_cycle, cycle)
+        if found is None:
+            raise ReplayError("with the values tracked, what the rest of the system does "
+                              "while the group is stuck does not repeat")
+        start, turn, back = found
+        prefix = start.path()
+        into = turn.path()
+        m = w.raw(start.marking)
+        for s in stuck:
+            self.progress.append(Counterexample(
+                "progress", w.steps(prefix), self._labels(m), subsystem=s,
+                where=marking_where(net, m), to_cycle=w.steps(into[len(prefix):]),
+                cycle=w.steps(back.path()[len(into):]),
+                cycle_marking=self._labels(w.raw(turn.marking))))
+
     def slice_progress(self, sl: Slice, cx: Counterexample) -> None:
         steps, m = replay_group(sl, sl.whole_steps(cx.steps))
         to_cycle, at = replay_group(sl, sl.whole_steps(cx.to_cycle), m)
@@ -191,6 +596,9 @@ class _Lifted:
             passes += fired
             if at in seen:
                 k = seen[at]
+                if self.whole.net is not None and cx.subsystem is not None:
+                    self._progress_with_values(sl, cx, passes[:k], passes[k:])
+                    return
                 self.progress.append(Counterexample(
                     "progress", self._steps(steps), self._labels(m), subsystem=cx.subsystem,
                     where=marking_where(self.net, m),
@@ -200,6 +608,41 @@ class _Lifted:
             seen[at] = len(passes)
         raise ReplayError(f"the cycle of {cx.subsystem} does not repeat in the whole net "
                           f"within {CYCLE_PASSES} passes")
+
+    def _progress_with_values(self, sl: Slice, cx: Counterexample, to_cycle: Sequence[int],
+                              cycle: Sequence[int]) -> None:
+        """The slice's loss of progress lifted with the values tracked: its steps
+        (``_Whole.replay``), the claim that the subsystem never iterates again checked in
+        the whole net (the values the slice left free may let it go on), the cycle."""
+        assert cx.subsystem is not None
+        subsystem = cx.subsystem
+        w = self.whole
+        starts = w.replay(sl, sl.whole_steps(cx.steps))[:4]
+        never = []
+        undecided = False
+        for n in starts:
+            verdict = self.whole.iterates(n.marking, subsystem)
+            if verdict is False:
+                never.append(n)
+            undecided |= verdict is None
+        if not never:
+            raise ReplayError(
+                f"with the values tracked, whether {subsystem} iterates again from there "
+                f"is not decided within {FUTURE_STATES:,} markings of the whole net"
+                if undecided else
+                f"with the values tracked, {subsystem} can still iterate in the whole net")
+        found = w.lasso(never, to_cycle, cycle)
+        if found is None:
+            raise ReplayError("with the values tracked, the cycle does not repeat in the "
+                              "whole net")
+        start, turn, back = found
+        prefix, into = start.path(), turn.path()
+        m = w.raw(start.marking)
+        self.progress.append(Counterexample(
+            "progress", w.steps(prefix), self._labels(m), subsystem=subsystem,
+            where=marking_where(self.net, m), to_cycle=w.steps(into[len(prefix):]),
+            cycle=w.steps(back.path()[len(into):]),
+            cycle_marking=self._labels(w.raw(turn.marking))))
 
     def slice_unsafe(self, sl: Slice, cx: Counterexample) -> None:
         net = self.net
@@ -213,6 +656,15 @@ class _Lifted:
         doubled = frozenset(net.rule.produce[last]) & m
         if not doubled:
             raise ReplayError("the last firing puts no second token anywhere in the whole net")
+        if self.whole.net is not None:
+            ends = self.whole.replay(sl, group_steps)
+            steps = [self.whole.origin[u] for u in ends[0].path()[:-1]]
+            last = self.whole.origin[ends[0].path()[-1]]
+            m = self.whole.raw(ends[0].parent.marking if ends[0].parent else ends[0].marking)
+            doubled = frozenset(net.rule.produce[last]) & m
+            if not doubled:
+                raise ReplayError("with the values tracked, the last firing puts no second "
+                                  "token anywhere in the whole net")
         self.unsafe = Counterexample("unsafe", self._steps([*steps, last]), self._labels(m),
                                      doubled=self._labels(doubled))
 
@@ -221,8 +673,60 @@ class _Lifted:
         try:
             fn(sl, cx)
         except ReplayError as e:
-            self.failed.append(f"{what} found in the slice of {_names(sl.keep)} "
-                               f"was not reproduced in the whole net: {e}")
+            tried = ("the group's steps replayed in the whole net with the other subsystems "
+                     "standing still, and wherever a step was not enabled a search of up to "
+                     f"{OUTSIDE_STATES:,} markings of the other subsystems' moves")
+            if self.whole.net is not None:
+                tried += "; the lifted steps checked with the values tracked"
+            if sl.whole_inside:
+                tried += ("; the slice again with the free channels inside the group whole ("
+                          + ", ".join(sl.whole_inside) + ")")
+            self.failed.append(Unconfirmed(cx.kind, what, tuple(sorted(sl.keep)), str(e),
+                                           tried, cx))
+            self.cut_by.append(sl.cut)
+
+    def lift_all(self, sl: Slice, r: VerifyReport) -> None:
+        """Every violation of ``sl``'s report ``r``."""
+        for cx in r.deadlocks:
+            self.lift("a stuck group", self.slice_deadlock, sl, cx)
+        for cx in r.progress:
+            self.lift(f"a loss of progress of {cx.subsystem}", self.slice_progress, sl, cx)
+        if r.unsafe is not None:
+            self.lift("an unsafe firing", self.slice_unsafe, sl, r.unsafe)
+
+
+def _has(place: int) -> Callable[[frozenset[int]], bool]:
+    def has(m: frozenset[int]) -> bool:
+        return place in m
+    return has
+
+
+def _upstream(net: FlatNet, c: Channel, group: frozenset[str],
+              chans: dict[str, Channel]) -> set[str | None]:
+    """The subsystems outside ``group`` that can make ``c``'s producer send something new:
+    the producer, and whoever feeds it (outside the group), transitively."""
+    out: set[str | None] = set()
+    todo = [c.producer]
+    while todo:
+        s = todo.pop()
+        if s is None or s in out or s in group:
+            continue
+        out.add(s)
+        todo += [d.producer for d in chans.values() if d.consumer == s]
+    return out
+
+
+def _end_of_take(net: FlatNet, take: int) -> int:
+    """The step after a receive's ``in + full -> op``: the one from its op place."""
+    op = set(net.transitions[take].post)
+    sub = net.transitions[take].subsystem
+    return next((u.index for u in net.transitions
+                 if u.subsystem == sub and set(u.pre) == op), -1)
+
+
+def _waits_outside(net: FlatNet, t: int, group: frozenset[str]) -> bool:
+    return any(net.places[p].subsystem is not None and net.places[p].subsystem not in group
+               for p in net.transitions[t].pre)
 
 
 def _names(group: Collection[str], shown: int = 4) -> str:
@@ -252,15 +756,11 @@ def _fire(net: FlatNet, m: frozenset[int], steps: Sequence[int]) -> frozenset[in
 
 def _combine(net: FlatNet, groups: Sequence[tuple[str, ...]],
              parts: list[tuple[Slice, VerifyReport]], budget: Budget, start: float,
-             check_progress: bool) -> VerifyReport:
-    lifted = _Lifted(net)
+             check_progress: bool, whole: _Whole | None = None,
+             refined: Sequence[str] = ()) -> VerifyReport:
+    lifted = _Lifted(net, whole)
     for sl, r in parts:
-        for cx in r.deadlocks:
-            lifted.lift("a stuck group", lifted.slice_deadlock, sl, cx)
-        for cx in r.progress:
-            lifted.lift(f"a loss of progress of {cx.subsystem}", lifted.slice_progress, sl, cx)
-        if r.unsafe is not None:
-            lifted.lift("an unsafe firing", lifted.slice_unsafe, sl, r.unsafe)
+        lifted.lift_all(sl, r)
     reports = [r for _, r in parts]
     done = len(parts) == len(groups)
     safe, deadlock_free, progress_ok, verdict = _verdicts(reports, lifted, done, check_progress)
@@ -271,7 +771,8 @@ def _combine(net: FlatNet, groups: Sequence[tuple[str, ...]],
         shared.append(f"{len(alone)} subsystem(s) alone ({sum(alone):,} states in all)")
     notes = ["sliced at the channels nobody waits on: "
              f"{len(groups)} blocking group(s), each verified on its own: " + "; ".join(shared)]
-    notes += lifted.failed
+    notes += refined
+    notes += [u.headline() for u in lifted.failed]
     for (sl, r) in parts:
         if len(sl.keep) == 1 and r.verdict is not Verdict.INCONCLUSIVE:
             continue            # the free-running ones: their notes say nothing new
@@ -279,7 +780,7 @@ def _combine(net: FlatNet, groups: Sequence[tuple[str, ...]],
         notes += [f"[{label}] {n}" for n in r.notes]
     why = next((r.why_undecided for r in reports if r.why_undecided), None)
     if why is None and lifted.failed:
-        why = "a violation found in a slice was not reproduced in the whole net"
+        why = _open(lifted.failed)
     if why is None and not done:
         why = "not every group was verified"
     dead = None
@@ -332,7 +833,17 @@ def _combine(net: FlatNet, groups: Sequence[tuple[str, ...]],
         tracked_values=tuple(sorted({v for r in reports for v in r.tracked_values})),
         groups=tuple((tuple(sorted(sl.keep)), True if r.deadlocks else (
             False if r.deadlock_free else None)) for sl, r in parts),
+        unconfirmed=tuple(lifted.failed) if verdict is Verdict.INCONCLUSIVE else (),
     )
+
+
+def _open(failed: Sequence[Unconfirmed]) -> str:
+    """Why the verdict is open: the violations found in slices that the whole net did not
+    confirm, each named."""
+    shown = [f"{u.what} found in the slice of {_names(u.group)} was not confirmed in the "
+             "whole net" for u in failed[:2]]
+    more = f" and {len(failed) - 2} more" if len(failed) > 2 else ""
+    return "; ".join(dict.fromkeys(shown)) + more
 
 
 def _verdicts(reports: list[VerifyReport], lifted: _Lifted, done: bool, check_progress: bool,

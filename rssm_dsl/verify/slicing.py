@@ -35,7 +35,7 @@ Hence, for the group's places and for what it can reach:
 from __future__ import annotations
 
 import dataclasses
-from collections.abc import Sequence
+from collections.abc import Callable, Sequence
 
 from rssm_core.records import dataclass
 from rssm_dsl.hpn.flat import FlatNet, FlatPlace, FlatTransition, NewSites, Role
@@ -139,6 +139,8 @@ class Slice:
     keep: frozenset[str]
     transition_of: tuple[int, ...]
     place_of: tuple[int, ...]
+    cut: tuple[str, ...] = ()      # the free channels inside the group cut in two
+    whole_inside: tuple[str, ...] = ()   # ... and those kept whole (``slice_net(cut=False)``)
 
     def whole_steps(self, steps: Sequence[FlatTransition]) -> list[int]:
         """The group's moves of a firing sequence of the slice, as the whole net's
@@ -146,8 +148,10 @@ class Slice:
         return [self.transition_of[t.index] for t in steps if self.transition_of[t.index] >= 0]
 
 
-def slice_net(net: FlatNet, keep: Sequence[str]) -> Slice:
-    """The slice of ``net`` for the group ``keep`` (the module docstring)."""
+def slice_net(net: FlatNet, keep: Sequence[str], cut: bool = True) -> Slice:
+    """The slice of ``net`` for the group ``keep`` (the module docstring); with ``cut``
+    false, the free channels inside the group are kept whole (both ends and the value they
+    carry as in the whole net) instead of cut, each end with its own environment."""
     group = frozenset(keep)
     gone = {p.index for p in net.places if p.subsystem is not None and p.subsystem not in group}
     kept_t: list[tuple[FlatTransition, tuple[int, ...], tuple[int, ...]]] = []
@@ -165,7 +169,8 @@ def slice_net(net: FlatNet, keep: Sequence[str]) -> Slice:
     # a free channel inside the group is cut in two: the producer's end gets places of its
     # own, each end its environment (the data's freshness is all it carries, and that the
     # environment covers)
-    inner = [c for c in every if c.free and c.producer in group and c.consumer in group]
+    inside = [c for c in every if c.free and c.producer in group and c.consumer in group]
+    inner = inside if cut else []
     copies: dict[int, int] = {}                # producer's place -> -(k + 1), a new place
     own: dict[str | None, dict[int, int]] = {}
     for k, c in enumerate(inner):
@@ -228,7 +233,9 @@ def slice_net(net: FlatNet, keep: Sequence[str]) -> Slice:
         conditions=tuple(dataclasses.replace(c, transition=t_index[c.transition])
                          for c in net.conditions if c.transition in t_index),
         new_sites=new_sites)
-    return Slice(net, sliced, group, tuple(transition_of), place_of)
+    return Slice(net, sliced, group, tuple(transition_of), place_of,
+                 tuple(c.name for c in inner),
+                 tuple(c.name for c in inside) if not cut else ())
 
 
 def _prune(kept: list[tuple[FlatTransition, tuple[int, ...], tuple[int, ...]]],
@@ -301,6 +308,8 @@ def replay_group(sl: Slice, steps: Sequence[int], marking: frozenset[int] | None
     fulls = {c.name: c.full for c in chans}
     alt = _alternatives(net, sl.keep, chans)
     finish = _send_ends(net, sl.keep, chans)
+    pending: list[int] = []           # plumbing steps waiting for the outside
+    searched = 0                      # states the searches of the outside's moves took
     for t in steps:
         pre = net.transitions[t].pre
         if ahead.get(t):
@@ -309,6 +318,16 @@ def replay_group(sl: Slice, steps: Sequence[int], marking: frozenset[int] | None
         if skip.intersection(pre):
             skip.difference_update(pre)
             continue
+        _fire_pending(net, m, pending, out)
+        if not m.issuperset(pre) and net.transitions[t].subsystem is None \
+                and _waits_outside(net, t, sl.keep):
+            # the system's plumbing waiting for subsystems outside the group as well (an
+            # agent's end: the slice has only the group's subsystems of it): it fires once
+            # they are there, if ever; nothing of the group waits for it
+            pending.append(t)
+            continue
+        if not m.issuperset(pre) and _swap(net, m, t, alt) is None:
+            searched += _outside_first(sl, m, t, alt, OUTSIDE_STATES - searched, out)
         if not m.issuperset(pre):
             swap = _swap(net, m, t, alt)
             if swap is None:
@@ -322,7 +341,10 @@ def replay_group(sl: Slice, steps: Sequence[int], marking: frozenset[int] | None
                         ahead[u] = ahead.get(u, 0) + 1
                 swap = t if m.issuperset(pre) else _swap(net, m, t, alt)
             if swap is None:
-                raise ReplayError(f"{net.transitions[t].label} cannot fire")
+                raise ReplayError(f"{net.transitions[t].label} cannot fire (step "
+                                  f"{steps.index(t) + 1} of the group's {len(steps)}; "
+                                  f"{searched:,} states of the other subsystems' moves "
+                                  "searched for a marking that enables it)")
             if swap != t and _is_take(net, t, fulls):
                 skip.update(set(net.transitions[t].post) - set(net.transitions[swap].post))
             taken = swap != t and _is_take(net, swap, fulls)
@@ -335,7 +357,95 @@ def replay_group(sl: Slice, steps: Sequence[int], marking: frozenset[int] | None
         m.difference_update(rule.consume[t])
         m.update(rule.produce[t])
         out.append(t)
+    _fire_pending(net, m, pending, out)
     return out, frozenset(m)
+
+
+OUTSIDE_STATES = 20_000     # markings a replay searches at most for the outside's moves
+
+
+@dataclass(frozen=True)
+class OutsideSearch:
+    steps: list[int] | None     # the outside's moves to a marking that satisfies the goal
+    states: int                 # markings searched
+
+
+def outside_until(net: FlatNet, marking: set[int] | frozenset[int], group: frozenset[str],
+                  goal: Callable[[frozenset[int]], bool], max_states: int,
+                  ) -> OutsideSearch:
+    """A breadth-first search over the moves of everything outside ``group`` (the other
+    subsystems and the system's plumbing), the group standing still, from ``marking`` to a
+    marking where ``goal`` holds; at most ``max_states`` markings."""
+    rule = net.rule
+    movers = [t.index for t in net.transitions if t.subsystem not in group]
+    start = frozenset(marking)
+    if goal(start):
+        return OutsideSearch([], 1)
+    parent: dict[frozenset[int], tuple[frozenset[int], int] | None] = {start: None}
+    frontier = [start]
+    while frontier and len(parent) < max_states:
+        nxt: list[frozenset[int]] = []
+        for m in frontier:
+            for u in movers:
+                if not m.issuperset(rule.pre[u]):
+                    continue
+                m2 = m.difference(rule.consume[u]).union(rule.produce[u])
+                if m2 in parent:
+                    continue
+                parent[m2] = (m, u)
+                if goal(m2):
+                    path: list[int] = []
+                    at: frozenset[int] = m2
+                    while (link := parent[at]) is not None:
+                        at, step = link
+                        path.append(step)
+                    return OutsideSearch(path[::-1], len(parent))
+                nxt.append(m2)
+                if len(parent) >= max_states:
+                    break
+        frontier = nxt
+    return OutsideSearch(None, len(parent))
+
+
+def _waits_outside(net: FlatNet, t: int, group: frozenset[str]) -> bool:
+    """Plumbing ``t`` takes a place of a subsystem outside ``group``."""
+    return any(net.places[p].subsystem is not None and net.places[p].subsystem not in group
+               for p in net.transitions[t].pre)
+
+
+def _outside_first(sl: Slice, m: set[int], t: int, alt: dict[int, list[int]],
+                   max_states: int, out: list[int]) -> int:
+    """The rest of the system may have to move first (a step of the group that needs what
+    the slice's environment gave it at once): a bounded search of the outside's moves until
+    ``t``, or a sibling of it, is enabled; its steps fired (``m``, ``out``). The markings
+    searched."""
+    net = sl.whole
+    rule = net.rule
+
+    def enabled(mm: frozenset[int]) -> bool:
+        return mm.issuperset(rule.pre[t]) or _swap(net, set(mm), t, alt) is not None
+
+    found = outside_until(net, m, sl.keep, enabled, max_states)
+    for u in found.steps or ():
+        m.difference_update(rule.consume[u])
+        m.update(rule.produce[u])
+        out.append(u)
+    return found.states
+
+
+def _fire_pending(net: FlatNet, m: set[int], pending: list[int], out: list[int]) -> None:
+    """Fire the plumbing steps put aside that are enabled now, in their order."""
+    rule = net.rule
+    fired = True
+    while fired:
+        fired = False
+        for u in list(pending):
+            if m.issuperset(rule.pre[u]):
+                m.difference_update(rule.consume[u])
+                m.update(rule.produce[u])
+                out.append(u)
+                pending.remove(u)
+                fired = True
 
 
 def _receive_end(net: FlatNet, take: int) -> int:

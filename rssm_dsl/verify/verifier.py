@@ -148,9 +148,13 @@ def verify(net: FlatNet, options: VerifyOptions | None = None) -> VerifyReport:
             # the whole net, compositionally
             whole = verify(net, dataclasses.replace(opts, slicing=False, budget=budget,
                                                      auto_full_states=0))
+            # what the slices found and the whole net did not confirm stays in an open
+            # report (the whole net's verdict, when it gives one, settles it)
             return dataclasses.replace(whole, notes=(
                 f"sliced verification left the verdict open ({sliced.why_undecided}); "
-                "the whole net was verified instead", *whole.notes))
+                "the whole net was verified instead", *whole.notes),
+                unconfirmed=sliced.unconfirmed
+                if whole.verdict is Verdict.INCONCLUSIVE else ())
     # new(x) and the finite values in the net's places (datanet.py, valuenet.py), the report
     # told back in net's words
     with _named(opts.budget, "the data tracking"):
