@@ -27,7 +27,8 @@ from rssm_dsl.semantics.properties import InBehaviour
 from rssm_dsl.source import Span
 from rssm_dsl.verify import VerifyOptions, verify
 from rssm_dsl.verify.dataplan import value_plan
-from rssm_dsl.verify.netbits import NetBits
+from rssm_dsl.verify.invariants import place_invariants
+from rssm_dsl.verify.netbits import NetBits, to_mask
 from rssm_dsl.verify.progress import backward_closure
 from rssm_dsl.verify.report import Verdict
 from rssm_dsl.verify.statespace import Graph, explore_full
@@ -122,7 +123,11 @@ def _valuations(graph: Graph, net: FlatNet, atoms: list[InBehaviour]) -> set[tup
 
 
 def _reduced(net: FlatNet, atoms: list[InBehaviour]) -> Graph:
-    r = explore_reduced(NetBits.of(net), for_progress=True,
+    """The stubborn-set graph as userprops.py explores it: the places the invariants prove
+    safe need no up-set (which would otherwise hide a missing condition by adding the
+    producers of every unmarked place)."""
+    safe = to_mask(place_invariants(net).safe_places)
+    r = explore_reduced(NetBits.of(net), safe, for_progress=True,
                         visible=visible_transitions(net, atoms))
     assert r.complete and r.graph is not None
     return r.graph
