@@ -10,6 +10,7 @@ tight bound, the machine is shared)."""
 from __future__ import annotations
 
 import json
+import signal
 import subprocess
 import sys
 import textwrap
@@ -26,7 +27,7 @@ from rssm_dsl.synth import lean_ring_system
 from rssm_dsl.verify.budget import Budget, LimitReached
 from tests.conftest import EXAMPLES, ROOT
 
-EXIT_USAGE, EXIT_INCONCLUSIVE = 2, 3
+EXIT_USAGE, EXIT_INCONCLUSIVE, EXIT_INTERRUPTED = 2, 3, 130
 SPEC = EXAMPLES / "verify" / "deadlock_pair.rssm"     # small: every phase is quick
 SLOW = 600.0                                          # seconds a slowed phase would take
 FAR_EARLIER = 60.0
@@ -235,3 +236,62 @@ def test_the_watchdog_stops_nothing_before_the_deadline() -> None:
                                                grace=0.1, hard=30), budget.running("the nap"):
         spin(30)
     assert budget.stop is not None and budget.stop.phase == "the nap"
+
+
+SLOWED_CLI = textwrap.dedent("""
+    import sys, time
+    import rssm_dsl.pipeline as pipeline
+    from rssm_dsl.cli import entry
+
+    held = []
+    grow = sys.argv[1] == "grow"
+
+    def slow(*args, **kwargs):
+        end = time.monotonic() + 600
+        while time.monotonic() < end:
+            if grow and len(held) < 400:
+                held.append(b"x" * (1 << 20) + bytes(len(held)))    # 1 MB more, touched
+            sum(range(1000))
+
+    pipeline.compile_file = slow
+    sys.argv = ["rssmc", "verify", *sys.argv[2:]]
+    entry()
+""")
+
+
+def slowed_cli(tmp_path: Path, mode: str, *args: str) -> subprocess.Popen[str]:
+    script = tmp_path / "slowed.py"
+    script.write_text(SLOWED_CLI)
+    return subprocess.Popen([sys.executable, str(script), mode, str(SPEC), *args], cwd=ROOT,
+                            stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True)
+
+
+def test_the_memory_limit_binds_in_a_phase_that_does_not_check(tmp_path: Path) -> None:
+    """The compilation grows by 1 MB at a time up to 400 MB; the limit is 150 MB above what
+    a small run holds."""
+    small, _ = verify_in_process(SPEC, "--format", "json")
+    limit = (json.loads(small.stdout)["peak_memory_bytes"] >> 20) + 150
+    t = time.monotonic()
+    p = slowed_cli(tmp_path, "grow", "--max-memory", f"{limit}M", "--format", "json")
+    out, err = p.communicate(timeout=300)
+    assert time.monotonic() - t < FAR_EARLIER
+    assert p.returncode == EXIT_INCONCLUSIVE, out + err
+    report = json.loads(out)
+    assert report["stopped_by"]["kind"] == "memory"
+    assert report["headline"].startswith(f"INCONCLUSIVE: memory limit of {limit} MB reached "
+                                         "in the compilation")
+    assert report["interrupted_phase"] == "the compilation"
+
+
+def test_ctrl_c_in_a_phase_that_does_not_check(tmp_path: Path) -> None:
+    p = slowed_cli(tmp_path, "spin", "--timeout", "300", "--format", "json")
+    time.sleep(3)
+    sent = time.monotonic()
+    p.send_signal(signal.SIGINT)
+    out, err = p.communicate(timeout=300)
+    assert time.monotonic() - sent < FAR_EARLIER
+    assert p.returncode == EXIT_INTERRUPTED, out + err
+    report = json.loads(out)
+    assert report["exit_code"] == EXIT_INTERRUPTED
+    assert report["headline"] == "INCONCLUSIVE: interrupted (Ctrl-C) in the compilation"
+    assert "stopping at the next check" in err and "Traceback" not in err
