@@ -19,8 +19,17 @@ sequence of the whole net it becomes:
   whole net's marking repeats);
 * an unsafe firing: its steps are replayed and the last one must put a second token somewhere.
 
-A violation whose replay fails is not reported as a violation; the report says so and the
-verdict stays open.
+The replay (``replay_group``) moves tokens: it passes over the plumbing that also waits for
+subsystems outside the group (an agent's end) and lets the rest move first, a bounded
+search, when a step of the group is not enabled. A slice's environment also gives any value,
+so with values tracked the lift is done in the whole net with its values (``_Whole``): the
+producers outside run until they have sent what the slice took from its environment, any
+value they can, and a step whose values do not hold cannot be taken; a stuck group is
+claimed only once none of its moves is enabled there. A slice that cut free channels inside
+its group and found violations the whole net does not confirm is verified again with them
+whole. A violation that still is not lifted is never reported as one: the report names it
+(``report.Unconfirmed``: what, the group, why, what was tried, the slice's firing sequence)
+and the verdict stays open.
 """
 
 from __future__ import annotations
@@ -101,7 +110,7 @@ def verify_sliced(net: FlatNet, groups: Sequence[tuple[str, ...]], opts: VerifyO
                 first.verdict if first.verdict is Verdict.VIOLATED else Verdict.INCONCLUSIVE),
                 notes=(*r.notes, *first.notes), why_undecided=r.why_undecided)
         found[i] = r
-    whole = _Whole(net, opts.values)
+    whole = _Whole(net, opts.values, budget)
     refined: list[str] = []
     for i, r in list(found.items()):
         sl = slices[i]
@@ -225,9 +234,11 @@ class _Whole:
     and a claim that a subsystem never iterates again must hold with those values. None of
     this is needed when no value is tracked (``net`` is None)."""
 
-    def __init__(self, source: FlatNet, plan: ValuePlan | None) -> None:
+    def __init__(self, source: FlatNet, plan: ValuePlan | None,
+                 budget: Budget | None = None) -> None:
         t = track_values(track_new(source), plan) if plan is not None else None
         self.source = source
+        self.budget = budget
         self.net: FlatNet | None = t.net if t is not None and t.values else None
         self.origin: tuple[int, ...] = t.origin if t is not None else ()
         self.place_origin: tuple[int | None, ...] = t.place_origin if t is not None else ()
@@ -306,6 +317,8 @@ class _Whole:
                         if m2 in seen:
                             continue
                         seen.add(m2)
+                        if self.stopped(len(seen)):
+                            return list(found.values())[:LAYER]
                         child = _Node(m2, n, u, n.skip)
                         if goal(m2):
                             keep(child)
@@ -413,6 +426,11 @@ class _Whole:
         return any(m.issuperset(pre[u]) for r in (t, *self.siblings[t])
                    for u in self.variants.get(r, ()))
 
+    def stopped(self, searched: int) -> bool:
+        """The run's limit reached (polled every 256 markings searched)."""
+        return (searched & 255 == 0 and self.budget is not None
+                and self.budget.poll() is not None)
+
     def root(self) -> _Node:
         assert self.net is not None
         return _Node(frozenset(self.net.initial), None, -1)
@@ -467,7 +485,7 @@ class _Whole:
                     if m.issuperset(rule.pre[u]):
                         m2 = m.difference(rule.consume[u]).union(rule.produce[u])
                         if m2 not in seen:
-                            if len(seen) >= FUTURE_STATES:
+                            if len(seen) >= FUTURE_STATES or self.stopped(len(seen)):
                                 return None
                             seen.add(m2)
                             nxt.append(m2)
@@ -673,11 +691,17 @@ class _Lifted:
         try:
             fn(sl, cx)
         except ReplayError as e:
-            tried = ("the group's steps replayed in the whole net with the other subsystems "
-                     "standing still, and wherever a step was not enabled a search of up to "
-                     f"{OUTSIDE_STATES:,} markings of the other subsystems' moves")
             if self.whole.net is not None:
-                tried += "; the lifted steps checked with the values tracked"
+                tried = ("the group's steps replayed in the whole net with the values tracked: "
+                         "where the slice's environment wrote data, the subsystems outside "
+                         "that produce it run until they have sent some, any value they can "
+                         f"(up to {FEED_STATES:,} markings each time); wherever a step was "
+                         f"not enabled, a search of up to {OUTSIDE_STATES:,} markings of the "
+                         "other subsystems' moves")
+            else:
+                tried = ("the group's steps replayed in the whole net with the other "
+                         "subsystems standing still, and wherever a step was not enabled a "
+                         f"search of up to {OUTSIDE_STATES:,} markings of their moves")
             if sl.whole_inside:
                 tried += ("; the slice again with the free channels inside the group whole ("
                           + ", ".join(sl.whole_inside) + ")")

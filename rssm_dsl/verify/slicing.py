@@ -27,9 +27,10 @@ Hence, for the group's places and for what it can reach:
   so one deadlock-free slice makes the whole net deadlock-free;
 * the group's subsystems never wait on the environment, and the data cases a fresh or a stale
   value selects all end in the same place, so the group's own moves in a slice run can be
-  replayed in the whole net with the outside standing still (:func:`replay_group`): every
-  violation found in a slice is lifted to a firing sequence of the whole net and checked
-  there before it is reported.
+  replayed, token for token, in the whole net with the outside standing still
+  (:func:`replay_group`; the values the environment gave are another matter: ``sliced``
+  lifts them with the values tracked): every violation found in a slice is lifted to a
+  firing sequence of the whole net and checked there before it is reported.
 """
 
 from __future__ import annotations
