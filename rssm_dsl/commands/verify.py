@@ -228,7 +228,13 @@ def _verify(budget: Budget, watch: Watchdog, live: _Live | None, file: Path, for
         extra: dict[str, Any] = {}
         text_extra: list[str] = []
         if cross_check:
-            extra, text_extra = _cross_check(net, result, comp.hpn, budget, values)
+            try:
+                with budget.running("the cross-checks"):
+                    extra, text_extra = _cross_check(net, result, comp.hpn, budget, values)
+            except LimitReached as e:   # the watchdog stopped one: the verdict stands
+                watch.finish()
+                extra = {"stopped": e.stop.message}
+                text_extra = ["", f"independent cross-checks: stopped ({e.stop.message})"]
         watch.finish()      # the verdict is in: the report is written whatever the clock says
     except (LimitReached, MemoryError) as e:
         watch.finish()

@@ -295,3 +295,16 @@ def test_ctrl_c_in_a_phase_that_does_not_check(tmp_path: Path) -> None:
     assert report["exit_code"] == EXIT_INTERRUPTED
     assert report["headline"] == "INCONCLUSIVE: interrupted (Ctrl-C) in the compilation"
     assert "stopping at the next check" in err and "Traceback" not in err
+
+
+def test_a_cross_check_stopped_by_the_watchdog_keeps_the_verdict(
+        monkeypatch: pytest.MonkeyPatch) -> None:
+    import rssm_dsl.commands.verify as command
+
+    monkeypatch.setattr(command, "_spin", slowed(command._spin))
+    result, wall = verify_in_process(SPEC, "--timeout", "8", "--cross-check")
+    assert wall < FAR_EARLIER
+    assert result.exit_code == 1, result.stdout + result.stderr     # its deadlock
+    assert result.stdout.startswith("system handshake: VIOLATED")
+    assert ("independent cross-checks: stopped (time limit of 8 s reached in the "
+            "cross-checks)") in result.stdout
