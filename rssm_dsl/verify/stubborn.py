@@ -66,7 +66,12 @@ visible transition holds them all (V), and with the cycle proviso (L) no visible
 is put off forever. The reduced graph then has, for every run of the full one, a run with
 the same sequence of visible firings (stuttering equivalence, Valmari), so it reaches a
 marking where the atoms have given values iff the full graph does: a state invariant over
-the atoms holds in the reduced graph iff it holds in the full one.
+the atoms holds in the reduced graph iff it holds in the full one. The argument of progress
+above, with "an ITERATION of s" replaced by "a state where Q holds" (Q's transitions
+visible), decides `whenever P eventually Q` on the reduced graph too (userprops.py). Each of
+these conditions (the conflicts of an enabled transition, the scapegoat of a disabled one, V
+and its exclusion from the lone-transition shortcut, the proviso, the up-set) has a test that
+fails without it: bench/mutants.py, the stubborn-* mutants.
 
 With ``reduce=False`` the same search fires every enabled transition: a plain Python
 reference explorer for the tests.

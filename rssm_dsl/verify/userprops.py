@@ -9,19 +9,36 @@ the whole net, and the group's moves replay in the whole net with the rest stand
 the whole net when it holds in the slice; a violation found in the slice is replayed in the
 whole net before it is reported.
 
-What: the states are explored (breadth first; for `always`, with stubborn sets that keep every
-transition changing an atom visible, stubborn.py) and each property's atoms are read from
-every state explored: `SUB in BEH` is true when a place of BEH's page of SUB is marked, `SUB.NAME` is
-the value whose place is marked. The expression itself is evaluated by
+What: the states of the slice are explored once for all the properties on it, by the engine
+``reduction`` names (the one the deadlock check uses): "off", the full breadth-first search of
+statespace.py (markings as rows of 64-bit words, a whole level fired at once in numpy);
+"on", stubborn sets (stubborn.py) in which every transition that can change an atom of one of
+the properties is *visible* (a set holding an enabled visible transition holds them all), with
+the cycle proviso (every cycle of the reduced graph has a fully expanded marking); "auto" and
+"compositional" (which checks no properties itself), the full search up to
+``AUTO_FULL_STATES`` markings, then stubborn sets. Each property's atoms are read from every
+state explored, all states at once: `SUB in BEH` is true when a place of BEH's page of SUB is
+marked, `SUB.NAME` is the value whose place is marked. The expression itself is evaluated by
 :class:`rssm_dsl.semantics.properties.Formula` (the interpreter's compiled code), once per
 distinct combination of atom values.
 
 * `always P` is violated by a reachable state where P is false; the counterexample is the
-  shortest firing sequence to it.
+  shortest firing sequence to it (in the graph explored).
 * `whenever P eventually Q` is read as the progress check reads "completes another
   iteration" (report.PROGRESS_ASSUMPTION, strong fairness): it is violated by a reachable
   state where P holds and from which no continuation reaches a state where Q holds; the
-  counterexample is the shortest firing sequence to it.
+  counterexample is a lasso: the firing sequence to it, on to a terminal component of what
+  it can reach, and a cycle there (none when that is a deadlock), Q false all along.
+
+Why the stubborn graph decides both (D1, D2, V and the proviso; stubborn.py): from every
+explored state, a firing sequence of the full graph to a state with given atom values has a
+counterpart in the reduced graph (its first stubborn transition moved to the front, or an
+invisible key transition fired first, which changes no atom; the proviso bounds how often).
+So the reduced graph reaches every combination of the atoms the full one does (`always`),
+and a state of it reaches Q in the reduced graph iff it does in the full one; a reachable
+P-state that cannot reach Q has an explored counterpart (the same argument, the transitions
+added to it invisible and "cannot reach Q" kept by any firing), so `whenever` is decided
+exactly too.
 
 A state where the property reads a value the verifier does not track (a float...) leaves the
 property undecided there: it is reported as not decided, never as holding.
