@@ -84,7 +84,6 @@ CODES: tuple[Code, ...] = (
     Code("E501", "cases-not-exhaustive", _E, "a data-availability combination no case covers"),
     Code("E502", "cases-overlap", _E, "a data-availability combination two cases cover"),
     Code("E503", "new-of-non-input", _E, "new() of something that is not an input buffer"),
-    Code("E504", "too-many-inputs", _E, "too many input buffers to enumerate the data cases"),
     Code("E505", "new-outside-case", _E, "new() outside a data-availability case condition"),
     Code("E506", "case-condition-not-data", _E, "a case condition that is not over new() only"),
     # behaviours and the subsystem layer

@@ -74,12 +74,13 @@ class FlatCondition:
     """The condition of a flat transition that is not known without data (ir.Condition):
     ``kind`` is its ir.CondKind value (``case``: a data-availability case, ``continue`` /
     ``stop``: t_4 / t_out of a behaviour, ``switch``: f^sigma), ``text`` its words; a data
-    case's ``new`` gives new(x) per input buffer of its subsystem (bit k: input k)."""
+    case's ``new`` gives new(x) per input buffer of its subsystem (bit k: input k; None: an
+    input the case does not split, rssm_dsl/semantics/cases.py)."""
 
     transition: int
     kind: str
     text: str
-    new: tuple[bool, ...] | None = None
+    new: tuple[bool | None, ...] | None = None
 
 
 @dataclass(frozen=True, slots=True)

@@ -114,8 +114,9 @@ def _choices(hpn: HPN) -> dict[str, Condition]:
     out: dict[str, Condition] = {}
     for t in hpn.transitions.values():
         c = t.condition
-        if c is None or c.constant is False or (c.kind is CondKind.CASE and not c.new):
-            continue                  # not a choice (the one data case without inputs)
+        if c is None or c.constant is False or (
+                c.kind is CondKind.CASE and all(v is None for v in c.new or ())):
+            continue                  # not a choice (the one case of a function: no split)
         if c.constant is None or (c.kind is CondKind.SWITCH
                                   and switches[c.subsystem, c.behaviour] > 1):
             out[t.id] = c

@@ -229,7 +229,8 @@ class Condition:
     subsystem: str
     text: str
     behaviour: str | None = None
-    new: tuple[bool, ...] | None = None    # CASE: new(x) per input buffer
+    new: tuple[bool | None, ...] | None = None  # CASE: new(x) per input buffer (None: not
+                                               # split, rssm_dsl/semantics/cases.py)
     switch: int | None = None              # SWITCH: alpha
     constant: bool | None = None           # known without data (e.g. `terminal never when
                                            # false` makes t_out's condition constant false)

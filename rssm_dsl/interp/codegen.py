@@ -289,8 +289,10 @@ class FiringCode:
         ``CaseGroup``) fires, then its operation runs."""
         self.ns[f"G{p}"] = group.table
         self.ns[f"N{p}"] = group.state.new      # its mask is state.new_mask
+        self.ns[f"S{p}"] = group.select         # mask -> row (rssm_dsl/semantics/cases.py)
         # the case's transition, place, operation and `done` transition
-        body.append(f"ct, cp, co, cd = G{p}[N{p}.mask]")
+        body.append(f"ct, cp, co, cd = G{p}[S{p}(N{p}.mask)]" if group.split
+                    else f"ct, cp, co, cd = G{p}[0]")
         if not all(row[1] in empty for row in group.table):
             body += ["if tokens[cp]:", "    _unsafe(ct, cp)"]
         run = ["try:", "    co()", "except Exception as e:", "    _failure(cp, e)"]

@@ -14,7 +14,8 @@ and "Communication modes"):
 | IR element                                  | run-time meaning                               |
 |---------------------------------------------|------------------------------------------------|
 | place of a data case ``p[j,v,w,psi,varpi]`` | run the case's statements (partial function)   |
-| transition ``t[j,v,w,psi,varpi]``           | guard: new(x) of the inputs equal the case's   |
+| transition ``t[j,v,w,psi,varpi]``           | guard: new(x) of the split inputs equal the    |
+|                                             | case's (rssm_dsl/semantics/cases.py)           |
 | fork / join of ``P^f``                      | freeze new(x) / commit the memory version       |
 | ``p[j,v,w,2]``                              | ``i := i + 1``                                  |
 | ``t[j,v,w,4]`` / ``t[j,v,w,out]``           | guard: not (f^tau or f^eps) / f^tau or f^eps   |
@@ -51,6 +52,7 @@ from rssm_dsl.interp.state import BehaviourState, DeviceState, SubsystemState
 from rssm_dsl.interp.trace import TraceWriter
 from rssm_dsl.interp.values import converter, to_json
 from rssm_dsl.pipeline import Compilation
+from rssm_dsl.semantics import cases as case_rule
 from rssm_dsl.semantics.model import Device, Extern, Subsystem, System
 from rssm_dsl.semantics.typecheck import Symbol, owner_symbols
 from rssm_dsl.semantics.types import BOOL
@@ -76,13 +78,16 @@ class CaseGroup:
     """The data-availability sublayer of one partial function P^f_{j,v,w,psi}: from its input
     place exactly one case transition fires (the one whose new(x) combination is the
     subsystem's), then the case's operation, then its `done` transition to the output place.
-    ``table[mask]`` gives, for the combination ``mask`` (bit k: new(x_k)), the case's
-    transition, place, operation and `done` transition."""
+    ``table[select(mask)]`` gives, for the new(x) ``mask`` of the subsystem (bit k:
+    new(x_k)), the case's transition, place, operation and `done` transition: the table is
+    ordered by varpi over the ``split`` inputs (rssm_dsl/semantics/cases.py)."""
 
     state: SubsystemState
     in_place: int
     out_place: int
     table: tuple[tuple[int, int, Op | None, int], ...]
+    split: tuple[int, ...] = ()
+    select: Callable[[int], int] = field(default=case_rule.selector(()))
 
 
 @dataclass(eq=False)
@@ -325,15 +330,17 @@ class _Builder:
                 continue
             p_in, p_out = index[page.in_place], index[page.out_place]
             rows: dict[int, tuple[int, int, Op | None, int]] = {}
+            splits: set[tuple[int, ...]] = set()
             ok = True
             for t in self.hpn.index().net(page.id).transitions:
                 cond = t.condition
                 if cond is None or cond.kind is not CondKind.CASE:
                     continue
                 assert cond.new is not None
-                mask = sum(1 << k for k, v in enumerate(cond.new) if v)
+                row = case_rule.number_of(cond.new) - 1
+                splits.add(case_rule.split_of(cond.new))
                 ft = net.transitions[tindex[t.id]]
-                if ft.pre != (p_in,) or len(ft.post) != 1 or mask in rows:
+                if ft.pre != (p_in,) or len(ft.post) != 1 or row in rows or len(splits) > 1:
                     ok = False
                     break
                 place = ft.post[0]
@@ -343,11 +350,13 @@ class _Builder:
                         or rt.effects[done[0].index]:
                     ok = False
                     break
-                rows[mask] = (ft.index, place, rt.ops[place], done[0].index)
-            size = 1 << len(s.inputs)
+                rows[row] = (ft.index, place, rt.ops[place], done[0].index)
+            split = next(iter(splits), ())
+            size = 1 << len(split)
             if ok and sorted(rows) == list(range(size)):
                 rt.case_groups[p_in] = CaseGroup(s, p_in, p_out,
-                                                 tuple(rows[m] for m in range(size)))
+                                                 tuple(rows[m] for m in range(size)), split,
+                                                 case_rule.selector(split))
 
     # ------------------------------------------------------------------ transitions
     def _transition(self, rt: Runtime, ft: FlatTransition, subs: dict[str, SubsystemState],
@@ -369,8 +378,9 @@ class _Builder:
         match page.kind:
             case PageKind.PARTIAL if cond is not None and cond.kind is CondKind.CASE:
                 assert cond.new is not None
-                mask = sum(1 << k for k, v in enumerate(cond.new) if v)
-                rt.guards[i] = lambda: s.new_mask == mask
+                varpi, split = case_rule.number_of(cond.new), case_rule.split_of(cond.new)
+                if split:
+                    rt.guards[i] = lambda: case_rule.case_number(s.new_mask, split) == varpi
             case PageKind.FUNCTION if starts:
                 rt.effects[i] = _freeze_new(s)
             case PageKind.FUNCTION if ends:

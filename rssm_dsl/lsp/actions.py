@@ -21,11 +21,12 @@ from lsprotocol import types as lsp
 from rssm_core.records import dataclass
 from rssm_dsl.lsp.index import block_close, subsystem_key, system_id
 from rssm_dsl.lsp.positions import LineIndex, line_end, line_start
+from rssm_dsl.semantics import cases as case_rule
 from rssm_dsl.semantics.behaviours import (
     _NotData,
     combination_text,
-    combinations,
     eval_availability,
+    split_inputs,
 )
 from rssm_dsl.source import Span
 from rssm_dsl.syntax import ast
@@ -102,15 +103,16 @@ class Fixer:
             for bd in w.sub.behaviours:
                 for u in bd.updates:
                     if u.target_span.offset <= offset <= u.target_span.end_offset:
-                        return self._case_fixes(diag, w.sub, u)
+                        return self._case_fixes(diag, w.sub, bd, u)
         return []
 
     def _case_fixes(self, diag: lsp.Diagnostic, sub: ast.SubsystemDecl,
-                    u: ast.UpdateDecl) -> list[lsp.CodeAction]:
+                    bd: ast.BehaviourDecl, u: ast.UpdateDecl) -> list[lsp.CodeAction]:
         inputs = tuple(b.name for b in sub.buffers if b.direction is ast.Direction.INPUT)
         conditions: list[ast.Expr] = [c.condition for c in u.cases if c.condition is not None]
         missing: list[str] = []
-        for combo in combinations(len(inputs)):
+        # over the inputs the behaviour's case clauses read, as E501 reports them
+        for combo in case_rule.combinations(split_inputs(bd.updates, inputs), len(inputs)):
             covered = False
             for cond in conditions:
                 try:

@@ -30,6 +30,7 @@ from rssm_dsl.pycode import (
 from rssm_dsl.ros2.msgtypes import MessageTypes
 from rssm_dsl.ros2.stdtypes import PACKAGES as STD_PACKAGES
 from rssm_dsl.ros2.stdtypes import RosType, default_name, resolve
+from rssm_dsl.semantics import cases as case_rule
 from rssm_dsl.semantics.behaviours import combination_text
 from rssm_dsl.semantics.model import (
     Arrangement,
@@ -173,7 +174,20 @@ def arrangement(arr: Arrangement) -> str:
 
 
 def mask_of(case: DataCase) -> int:
-    return sum(1 << k for k, v in enumerate(case.new) if v)
+    """The row of a case in its table: new(x) of the split inputs as bits, bit i for the
+    i-th split input (rssm_dsl.semantics.cases.bits of any run-time mask the case stands for)."""
+    return sum(1 << i for i, v in enumerate(x for x in case.new if x is not None) if v)
+
+
+def row_source(split: tuple[int, ...], inputs: int) -> str:
+    """Python source of rssm_dsl.semantics.cases.bits(mask, split): the row of the case that the
+    run-time new(x) ``mask`` selects (``mask`` itself when every input is split)."""
+    if split == tuple(range(inputs)):
+        return "mask"
+    if not split:
+        return "0"
+    return " | ".join(f"(mask >> {k} & 1)" + (f" << {i}" if i else "")
+                      for i, k in enumerate(split))
 
 
 @dataclass(frozen=True)
@@ -331,13 +345,15 @@ class SubsystemCode:
                 fn = "None" if case.void else self._case_function(b, beh, pf, case)
                 by_mask[mask_of(case)] = (case, fn)
             table = f"CASES_{b}_{pf.index}"
+            split = case_rule.split_of(pf.cases[0].new)
             tables.append(f"{table} = (  # {comment(f'{beh.name}: update {pf.target}')}")
-            for mask in range(2 ** len(inputs)):
+            for mask in range(1 << len(split)):
                 case, fn = by_mask[mask]
                 tables.append(f"{INDENT}({case.index}, {fn}),  # "
                               + comment(combination_text(inputs, case.new)))
             tables.append(")")
-            calls.append(f"{INDENT}r.partial({table}[mask], st, stage)  # "
+            row = row_source(split, len(inputs))
+            calls.append(f"{INDENT}r.partial({table}[{row}], st, stage)  # "
                          + comment(f"f[{self.j},{self.sub.name},{beh.name},{pf.index}]: "
                                    f"update {pf.target}"))
         return tables, calls

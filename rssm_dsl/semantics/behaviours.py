@@ -1,14 +1,16 @@
 """Behaviours of a subsystem: partial transition functions (canonical decomposition) split
-into data-availability cases, terminal/error conditions, send/receive arrangements, and the
-switches of the subsystem layer."""
+into data-availability cases (the rule: rssm_dsl/semantics/cases.py), terminal/error conditions,
+send/receive arrangements, and the switches of the subsystem layer."""
 
 from __future__ import annotations
 
+from collections.abc import Iterable
 from dataclasses import field
 from functools import cache
 
 from rssm_core.records import dataclass
 from rssm_dsl.diagnostics import DiagnosticBag, Related
+from rssm_dsl.semantics import cases as case_rule
 from rssm_dsl.semantics.declarations import Globals
 from rssm_dsl.semantics.model import (
     Arrangement,
@@ -30,24 +32,40 @@ from rssm_dsl.syntax import ast
 from rssm_dsl.syntax.printer import expr_text
 from rssm_dsl.syntax.walk import names
 
-MAX_INPUTS = 12
 MEMORY = "memory"
 _KIND_TEXT = {"param": "parameter", "const": "constant", "local": "`let` value",
               "extern": "external operation"}
 
 
 @cache
-def combination_text(inputs: tuple[str, ...], new: tuple[bool, ...]) -> str:
-    if not inputs:
-        return "(no inputs)"
-    return " and ".join(f"new({n})" if v else f"not new({n})" for n, v in zip(inputs, new, strict=True))
+def combination_text(inputs: tuple[str, ...], new: case_rule.Combination) -> str:
+    return case_rule.text(inputs, new)
 
 
-@cache
-def combinations(n: int) -> list[tuple[bool, ...]]:
-    """All 2^n combinations of new(x), ordered as the paper's Eq. 5: varpi = 1 is all new,
-    and the first input varies fastest."""
-    return [tuple(not (k >> i) & 1 for i in range(n)) for k in range(2**n)]
+def new_reads(e: ast.Expr, inputs: tuple[str, ...]) -> set[str]:
+    """The inputs whose new(x) a case condition reads."""
+    out: set[str] = set()
+    todo = [e]
+    while todo:
+        match todo.pop():
+            case ast.Call(function="new", args=(ast.Name(name=n),)) if n in inputs:
+                out.add(n)
+            case ast.Unary(operand=x):
+                todo.append(x)
+            case ast.Binary(left=a, right=b):
+                todo += [a, b]
+    return out
+
+
+def split_inputs(updates: Iterable[ast.UpdateDecl], inputs: tuple[str, ...]) -> tuple[int, ...]:
+    """The split inputs of a behaviour (rssm_dsl/semantics/cases.py): those whose new(x) a case clause
+    of any of its partial functions reads, in declaration order."""
+    read: set[str] = set()
+    for u in updates:
+        for c in u.cases:
+            if c.condition is not None:
+                read |= new_reads(c.condition, inputs)
+    return tuple(k for k, x in enumerate(inputs) if x in read)
 
 
 class _NotData(Exception):
@@ -55,13 +73,15 @@ class _NotData(Exception):
         self.span = span
 
 
-def eval_availability(e: ast.Expr, inputs: tuple[str, ...], new: tuple[bool, ...]) -> bool:
-    """Evaluate a case condition made of new(x), and/or/not, true/false."""
+def eval_availability(e: ast.Expr, inputs: tuple[str, ...], new: case_rule.Combination
+                       ) -> bool:
+    """Evaluate a case condition made of new(x), and/or/not, true/false (every input it
+    reads is given in ``new``)."""
     match e:
         case ast.Literal(value=bool() as v):
             return v
         case ast.Call(function="new", args=(ast.Name(name=n),)) if n in inputs:
-            return new[inputs.index(n)]
+            return bool(new[inputs.index(n)])
         case ast.Unary(op="not", operand=x):
             return not eval_availability(x, inputs, new)
         case ast.Binary(op="and", left=a, right=b):
@@ -113,12 +133,6 @@ class BehaviourPass:
             self.bag.error("E609", f"{self.shell.id} has no behaviours", decl.name_span,
                            "add `behaviour NAME { ... }` and `initial NAME`")
             return (), ()
-        if len(self.inputs) > MAX_INPUTS:
-            n = len(self.inputs)
-            self.bag.error("E504", f"{self.shell.id} has {n} input buffers: 2^{n} data cases per "
-                           "partial function are too many to enumerate", decl.name_span,
-                           f"keep at most {MAX_INPUTS} inputs per subsystem: group related "
-                           "values into one array or record buffer")
         for bd in decl.behaviours:
             for c in bd.conditions:
                 self.all_conditions.setdefault(c.name, bd.name)
@@ -153,8 +167,9 @@ class BehaviourPass:
             updates[u.target] = u
         functions: list[PartialFunction] = []
         targets = [b.name for b in self.outputs] + [MEMORY]
+        split = split_inputs(updates.values(), self.input_names)
         for psi, target in enumerate(targets, start=1):
-            functions.append(self._function(psi, target, updates.get(target), bd))
+            functions.append(self._function(psi, target, updates.get(target), bd, split))
         conditions = self._conditions(bd)
         send = self._arrangement(bd, bd.send, self.outputs, "send")
         receive = self._arrangement(bd, bd.receive, self.inputs, "receive")
@@ -174,20 +189,23 @@ class BehaviourPass:
                            u.target_span, f"update one of its outputs ({outs}) or memory")
 
     def _function(self, psi: int, target: str, u: ast.UpdateDecl | None,
-                  bd: ast.BehaviourDecl) -> PartialFunction:
+                  bd: ast.BehaviourDecl, split: tuple[int, ...]) -> PartialFunction:
         n = len(self.inputs)
-        if u is None:
-            combos = combinations(n) if n <= MAX_INPUTS else [tuple(True for _ in range(n))]
-            cases = tuple(DataCase(i + 1, c, (), bd.span, None) for i, c in enumerate(combos))
-            return PartialFunction(psi, target, cases, bd.span)
+        if u is None:  # no partial function written: one void case
+            return PartialFunction(psi, target, (DataCase(1, (None,) * n, (), bd.span, None),),
+                                   bd.span)
         for case in u.cases:
             self._body(case.body, target)
-        if n > MAX_INPUTS:  # reported once, in run()
-            return PartialFunction(psi, target, (), u.span)
-        return PartialFunction(psi, target, self._cases(u), u.span)
+        if all(c.condition is None for c in u.cases):
+            split = ()  # no case clause: one case (the text distinguishes nothing)
+        return PartialFunction(psi, target, self._cases(u, split), u.span)
 
-    def _cases(self, u: ast.UpdateDecl) -> tuple[DataCase, ...]:
+    def _cases(self, u: ast.UpdateDecl, split: tuple[int, ...]) -> tuple[DataCase, ...]:
+        """One case per combination of new(x) of the ``split`` inputs (rssm_dsl/semantics/cases.py);
+        the clauses are checked disjoint and exhaustive over them, which is exact: no clause
+        reads another input."""
         inputs = self.input_names
+        combos = case_rule.combinations(split, len(inputs))
         explicit: list[tuple[int, ast.Case]] = []
         fallback: tuple[int, ast.Case] | None = None
         broken = False  # a condition already reported: coverage is not checked
@@ -206,7 +224,7 @@ class BehaviourPass:
                 broken = True
                 continue
             try:
-                for combo in combinations(len(inputs)):
+                for combo in combos:
                     eval_availability(case.condition, inputs, combo)
             except _NotData as e:
                 self.bag.error("E506", "a case condition may only combine new(x) of input "
@@ -218,7 +236,7 @@ class BehaviourPass:
         out: list[DataCase] = []
         missing: list[str] = []
         overlaps: dict[tuple[int, int], list[str]] = {}
-        for varpi, combo in enumerate(combinations(len(inputs)), start=1):
+        for varpi, combo in enumerate(combos, start=1):
             covering = [(i, c) for i, c in explicit if eval_availability(c.condition, inputs, combo)]  # type: ignore[arg-type]
             if len(covering) > 1:
                 overlaps.setdefault((covering[0][0], covering[1][0]), []).append(
@@ -230,8 +248,8 @@ class BehaviourPass:
                 continue
             index, case = covering[0]
             out.append(DataCase(varpi, combo, case.body, case.span, index))
-        for (i1, i2), combos in sorted(overlaps.items()):
-            self.bag.error("E502", "cases overlap when " + "; ".join(combos), u.cases[i2].span,
+        for (i1, i2), texts in sorted(overlaps.items()):
+            self.bag.error("E502", "cases overlap when " + "; ".join(texts), u.cases[i2].span,
                            "make the case conditions disjoint",
                            related=(Related(u.cases[i1].span, "this case also covers it"),))
         if missing and not broken:

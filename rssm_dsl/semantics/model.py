@@ -3,7 +3,7 @@
 It mirrors the paper's structure (III-A): agents a_j with one control subsystem c_j, virtual
 effectors e_{j,n}, virtual receptors r_{j,k} and devices E_{j,h} / R_{j,l}; buffers paired
 into channels; behaviours made of partial transition functions (canonical decomposition),
-each split into 2^nu data-availability cases.
+each split into data-availability cases (the rule: rssm_dsl/semantics/cases.py).
 """
 
 from __future__ import annotations
@@ -12,6 +12,7 @@ from dataclasses import field
 
 from rssm_core.modes import Mode, pairing
 from rssm_core.records import dataclass
+from rssm_dsl.semantics.cases import Combination
 from rssm_dsl.semantics.types import Type
 from rssm_dsl.source import Span
 from rssm_dsl.syntax import ast
@@ -83,10 +84,13 @@ class Channel:
 
 @dataclass(frozen=True)
 class DataCase:
-    """One of the 2^nu data-availability cases of a partial function (index varpi, from 1)."""
+    """One data-availability case of a partial function (index varpi, from 1): the
+    combination of new(x) of the inputs its behaviour's case clauses read (rssm_dsl/semantics/cases.py).
+    """
 
     index: int
-    new: tuple[bool, ...]             # new(x) per input buffer, in declaration order
+    new: Combination                  # new(x) per input buffer, in declaration order; None:
+                                      # not split (the case stands for new and not new)
     body: tuple[ast.Stmt, ...]        # empty: a void operation
     span: Span                        # the user's case (or the update) it comes from
     source_case: int | None           # index of the user's case in the update, if any

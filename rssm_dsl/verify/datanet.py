@@ -2,28 +2,32 @@
 rssm_core/iteration.py).
 
 The flat net leaves every condition a free choice, the data cases of the partial functions
-included: from the start of a partial function any of its 2^n cases may fire, whatever the
+included: from the start of a partial function any of its cases may fire, whatever the
 receives did. :func:`track_new` gives the flat net places for new(x), so that the data case
 that fires is the one the receives allow, and every engine (full and stubborn-set search,
 the compositional check, progress, the SPIN and 4ti2 cross-checks) explores only those runs
 with no change of its own. The other conditions stay free choices (:func:`free_conditions`
 lists them for the report).
 
-The encoding, for each subsystem with n >= 1 inputs:
+The encoding, for each subsystem whose data cases split n >= 1 of its inputs (the inputs
+some case clause of the subsystem reads, rssm_dsl/semantics/cases.py; the others are not
+tracked: no case tells their new(x) apart):
 
-* per input x_k two complementary places, ``p^new[j,v,k,1]`` ("new(x_k)": a receive took
+* per tracked input x_k two complementary places, ``p^new[j,v,k,1]`` ("new(x_k)": a receive took
   fresh data into x_k since the transition function last used it) and ``p^new[j,v,k,2]``
   ("not new(x_k)", initially marked): one token between them, a place invariant;
 * the step RECEIVED of x_k's receive page (from its ``op`` place to ``out``) sets new(x_k),
   in two variants ``t^new[...,1]`` (it was not new) and ``t^new[...,2]`` (it was new already
   and stays so);
 * the fork of the transition function P^f (``t[j,v,w,f,in]``) freezes new(x) for the data
-  cases and uses the data: one variant ``t^new[j,v,w,f,in,varpi]`` per combination varpi
-  (numbered as the data cases are: varpi = 1 all new, the first input varying fastest),
-  taking the places of varpi and putting back "not new" for every input. The start place of
-  each partial function is split by combination (``p[j,v,w,psi,in]`` stands for varpi = 1,
-  ``p^new[j,v,w,psi,in,varpi]`` for the others), the variant marks those of varpi, and the
-  data case of varpi starts from its own: it is the only case that can fire.
+  cases and uses the data: one variant ``t^new[j,v,w,f,in,varpi]`` per combination varpi of
+  the tracked inputs (varpi = 1 all new, the first input varying fastest), taking the places
+  of varpi and putting back "not new" for every tracked input. The start place of each
+  partial function is split by the combinations of the inputs its cases split
+  (``p[j,v,w,psi,in]`` stands for "all new", ``p^new[j,v,w,psi,in,varpi]`` for the others),
+  the variant marks those its combination gives, and the data case of a combination starts
+  from its own: it is the only case that can fire. A partial function with one case (its
+  behaviour's clauses split nothing) keeps its start place.
 
 The interpreter clears new(x) at the join of P^f (rssm_dsl/interp/program.py); clearing it at
 the fork gives the same runs: nothing sets or reads new(x) of the subsystem between its fork
@@ -54,19 +58,21 @@ from rssm_core.records import dataclass
 from rssm_dsl.hpn.flat import FlatCondition, FlatNet, FlatPlace, FlatTransition
 from rssm_dsl.hpn.flatten import flatten
 from rssm_dsl.hpn.ir import HPN, Arc, FusionSet, Place
+from rssm_dsl.semantics import cases as case_rule
 from rssm_dsl.verify.report import Counterexample, FreeCondition, VerifyReport
 
 MAX_INPUTS = 10           # 2^n variants of a fork: beyond, new(x) of the subsystem stays free
 
 
-def varpi_of(new: tuple[bool, ...]) -> int:
-    """The number of a data case's combination (paper Eq. 5): 1 is all new, the first input
-    varies fastest (as ``rssm_dsl.semantics.behaviours.combinations`` orders them)."""
-    return 1 + sum(1 << k for k, v in enumerate(new) if not v)
+def varpi_of(new: tuple[bool | None, ...]) -> int:
+    """The number of a combination (paper Eq. 5) over the inputs it fixes: 1 is all new,
+    the first input varies fastest (rssm_dsl/semantics/cases.py)."""
+    return case_rule.number_of(new)
 
 
 def combination(varpi: int, n: int) -> tuple[bool, ...]:
-    """new(x) per input of combination ``varpi`` (the inverse of :func:`varpi_of`)."""
+    """new(x) per input of combination ``varpi`` of ``n`` inputs (the inverse of
+    :func:`varpi_of`)."""
     return tuple(not (varpi - 1) >> k & 1 for k in range(n))
 
 
@@ -170,7 +176,7 @@ class _Sub:
 
     name: str
     buffers: tuple[str, ...]          # by k
-    cases: dict[int, tuple[bool, ...]] = field(default_factory=dict)  # transition -> new(x)
+    cases: dict[int, tuple[bool | None, ...]] = field(default_factory=dict)  # t -> new(x)
     receives: dict[int, int] = field(default_factory=dict)            # RECEIVED -> k
     forks: set[int] = field(default_factory=set)
     consistent: bool = True
@@ -205,7 +211,8 @@ def _subsystems(net: FlatNet) -> list[_Sub]:
             subs[sub].forks.add(t)
     free = set(sites.free)
     for s in subs.values():
-        s.tracked = tuple(k for k in range(s.n) if (s.name, k) not in free)
+        split = {k for new in s.cases.values() for k in case_rule.split_of(new)}
+        s.tracked = tuple(k for k in range(s.n) if k in split and (s.name, k) not in free)
     return [s for s in subs.values()
             if s.consistent and 0 < len(s.tracked) <= MAX_INPUTS and s.forks
             and all(k < s.n for k in s.receives.values()) and _cases_start_at_forks(net, s)]
@@ -213,9 +220,10 @@ def _subsystems(net: FlatNet) -> list[_Sub]:
 
 def _cases_start_at_forks(net: FlatNet, s: _Sub) -> bool:
     """Each data case leaves from one place, which only forks of the subsystem mark and only
-    its data cases take, one case per combination (the shape the compiler builds)."""
+    its data cases take, one case per combination of the inputs they split (the shape the
+    compiler builds)."""
     rule = net.rule
-    seen: dict[int, set[tuple[bool, ...]]] = {}
+    seen: dict[int, set[tuple[bool | None, ...]]] = {}
     for t, new in s.cases.items():
         pre = net.transitions[t].pre
         if len(pre) != 1:
@@ -224,10 +232,11 @@ def _cases_start_at_forks(net: FlatNet, s: _Sub) -> bool:
         if not set(rule.producers[p]) <= s.forks or not set(rule.consumers[p]) <= s.cases.keys():
             return False
         combos = seen.setdefault(p, set())
-        if new in combos:
+        if new in combos or (combos and case_rule.split_of(new)
+                             != case_rule.split_of(next(iter(combos)))):
             return False
         combos.add(new)
-    return all(len(c) == 1 << s.n for c in seen.values())
+    return all(len(c) == 1 << len(case_rule.split_of(next(iter(c)))) for c in seen.values())
 
 
 # ---------------------------------------------------------------------- the tracked net
@@ -284,30 +293,33 @@ class _Builder:
         src, tracked = self.src, s.tracked
         n = len(tracked)
         split: dict[int, list[int]] = {}       # start place -> per varpi - 1: its place
+        keys: dict[int, tuple[int, ...]] = {}  # start place -> the tracked inputs it splits
         for t, new in s.cases.items():
             tr = src.transitions[t]
             p = tr.pre[0]
             if p not in split:
+                keys[p] = tuple(k for k in tracked if new[k] is not None)
                 like = src.places[p]
                 split[p] = [p] + [self.add_place(dataclasses.replace(
                     like, name=derived(like.name, v), origin=(derived(like.name, v),)), p)
-                    for v in range(2, (1 << n) + 1)]
-            varpi = varpi_of(tuple(new[k] for k in tracked))
+                    for v in range(2, (1 << len(keys[p])) + 1)]
+            varpi = varpi_of(tuple(new[k] for k in keys[p]))
             self.variants[t] = [(tr.name, (split[p][varpi - 1],), tr.post)]
         clear = tuple(s.flags[k][1] for k in tracked)
         for f in s.forks:
             tr = src.transitions[f]
             rest = tuple(q for q in tr.post if q not in split)
+            variants: list[Variant] = []
             for varpi in range(1, (1 << n) + 1):
-                c = combination(varpi, n)
-                known = dict(zip(tracked, c, strict=True))
+                known = dict(zip(tracked, combination(varpi, n), strict=True))
                 self.combinations[derived(tr.name, varpi)] = tuple(known.get(k)
                                                                    for k in range(s.n))
-            self.variants[f] = [
-                (derived(tr.name, varpi),
-                 (*tr.pre, *(s.flags[k][0 if c[i] else 1] for i, k in enumerate(tracked))),
-                 (*rest, *(split[q][varpi - 1] for q in tr.post if q in split), *clear))
-                for varpi in range(1, (1 << n) + 1) for c in [combination(varpi, n)]]
+                variants.append((
+                    derived(tr.name, varpi),
+                    (*tr.pre, *(s.flags[k][0 if known[k] else 1] for k in tracked)),
+                    (*rest, *(split[q][varpi_of(tuple(known[k] for k in keys[q])) - 1]
+                              for q in tr.post if q in split), *clear)))
+            self.variants[f] = variants
 
     def build(self, subs: list[_Sub]) -> TrackedNet:
         src = self.src

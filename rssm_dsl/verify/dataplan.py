@@ -44,6 +44,7 @@ from rssm_dsl.hpn.ir import CondKind, OpKind
 from rssm_dsl.interp.compile_expr import ExprCompiler
 from rssm_dsl.interp.initial import InitialValues
 from rssm_dsl.pipeline import Compilation
+from rssm_dsl.semantics import cases as case_rule
 from rssm_dsl.semantics.model import Buffer, Condition, Subsystem, System, Variable
 from rssm_dsl.semantics.typecheck import Symbol, owner_symbols
 from rssm_dsl.semantics.types import BOOL, finite_domain
@@ -113,7 +114,7 @@ class ValuePlan:
 
     vars: dict[str, Var]
     steps: dict[str, Step]
-    forks: dict[str, Callable[[tuple[bool, ...]], Step]]
+    forks: dict[str, Callable[[tuple[bool | None, ...]], Step]]
     free_forks: dict[str, Step]
     slot_writers: dict[str, frozenset[str]]  # slot key -> the transitions that mark its full
     subsystem_of: dict[str, str | None]     # var key -> its subsystem (None: a slot)
@@ -197,7 +198,7 @@ class _Planner:
         self.subsystem_of: dict[str, str | None] = {}
         self.channel_of: dict[str, str] = {}
         self.steps: dict[str, Step] = {}
-        self.forks: dict[str, Callable[[tuple[bool, ...]], Step]] = {}
+        self.forks: dict[str, Callable[[tuple[bool | None, ...]], Step]] = {}
         self.free_forks: dict[str, Step] = {}
         self.slot_writers: dict[str, set[str]] = {}
         for s in self.subs.values():
@@ -297,13 +298,24 @@ class _Planner:
         reads = s.reads(used)
         self.free_forks[name] = Step((), writes, _any(writes))
         inputs = len(s.model.inputs)
+        # the inputs the behaviour's cases split (rssm_dsl/semantics/cases.py)
+        split = sorted({k for pf in beh.functions for c in pf.cases
+                        for k in case_rule.split_of(c.new)})
 
-        def for_combination(new: tuple[bool, ...]) -> Step:
-            cases = [c for pf in beh.functions for c in pf.cases
-                     if c.new == new[:inputs] and not c.void]
-            runs = [compiled[id(c)] for c in cases]
+        def for_combination(new: tuple[bool | None, ...]) -> Step:
+            """The cases taken with new(x) ``new`` (None: not tracked, any value: the cases
+            of each combination of the split inputs it leaves open)."""
+            new = (*new[:inputs], *(None,) * (inputs - len(new)))
+            unknown_inputs = [k for k in split if new[k] is None]
+            choices: list[list[tuple[Any, tuple[str, ...]]]] = []
+            for bits in itertools.product((True, False), repeat=len(unknown_inputs)):
+                fill = dict(zip(unknown_inputs, bits, strict=True))
+                full = tuple(fill.get(k, v) for k, v in enumerate(new))
+                choices.append([compiled[id(c)] for pf in beh.functions for c in pf.cases
+                                if not c.void and case_rule.covers(c.new, full)])
 
-            def run(values: Mapping[str, Any]) -> list[Outcome]:
+            def one(runs: list[tuple[Any, tuple[str, ...]]], values: Mapping[str, Any]
+                    ) -> Outcome:
                 # each partial function reads the state before the transition function, so
                 # one that needs an unknown value (a float, an operation's result) leaves
                 # only its own targets unknown
@@ -314,9 +326,12 @@ class _Planner:
                         r(env, stage)
                     except Exception:
                         unknown.update(targets)
-                return [{k: ANY if k in unknown else
-                         _known(stage[n]) if n in stage else values.get(k, ANY)
-                         for k in writes for n in [k.rpartition(".")[2]]}]
+                return {k: ANY if k in unknown else
+                        _known(stage[n]) if n in stage else values.get(k, ANY)
+                        for k in writes for n in [k.rpartition(".")[2]]}
+
+            def run(values: Mapping[str, Any]) -> list[Outcome]:
+                return [one(runs, values) for runs in choices]
             return Step(reads, writes, run)
         self.forks[name] = for_combination
 

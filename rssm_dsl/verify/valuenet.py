@@ -47,21 +47,9 @@ def valued(name: str, i: int) -> str:
 
 def _fork_step(plan: ValuePlan, name: str, known: tuple[bool | None, ...] | None,
                inputs: int) -> Step:
-    make = plan.forks[name]
-    combo = known if known is not None else (None,) * inputs
-    free = [k for k, v in enumerate(combo) if v is None]
-    if not free:
-        return make(tuple(bool(v) for v in combo))
-    steps = []
-    for bits in itertools.product((True, False), repeat=len(free)):
-        fill = dict(zip(free, bits, strict=True))
-        steps.append(make(tuple(fill[k] if v is None else bool(v)
-                                for k, v in enumerate(combo))))
-    reads = tuple(sorted({r for s in steps for r in s.reads}))
-
-    def run(values: Mapping[str, Any]) -> list[Outcome]:
-        return [o for s in steps for o in s.run(values)]
-    return Step(reads, steps[0].writes, run)
+    # new(x) not tracked (None): the plan's step takes the cases of every combination of
+    # the inputs the behaviour splits (rssm_dsl/semantics/cases.py), and only those
+    return plan.forks[name](known if known is not None else (None,) * inputs)
 
 
 class _Values:

@@ -25,7 +25,8 @@ from rssm_dsl.interp.values import equal, float_array
 from rssm_dsl.pipeline import compile_file
 from rssm_dsl.pycode import var
 from rssm_dsl.ros2.msgtypes import MessageTypes
-from rssm_dsl.ros2.nodecode import Context, SubsystemCode
+from rssm_dsl.ros2.nodecode import Context, SubsystemCode, row_source
+from rssm_dsl.semantics import cases as case_rule
 from rssm_dsl.semantics.model import Subsystem, System
 from rssm_dsl.semantics.typecheck import Symbol, enum_symbols
 from rssm_dsl.semantics.types import BOOL, FLOAT, INT, ArrayT, EnumT, RangeT, RecordT, Type
@@ -148,9 +149,13 @@ def test_generated_code_computes_what_the_interpreter_computes(
                 for b, beh in enumerate(sub.behaviours, start=1):
                     for pf in beh.functions:
                         table = ns[f"CASES_{b}_{pf.index}"]
+                        split = case_rule.split_of(pf.cases[0].new)
                         for case in pf.cases:
+                            # a run-time mask the case stands for: the row the node's
+                            # code computes from it selects the case
                             mask = sum(1 << k for k, v in enumerate(case.new) if v)
-                            varpi, fn = table[mask]
+                            row = eval(row_source(split, len(sub.inputs)), {"mask": mask})
+                            varpi, fn = table[row]
                             assert varpi == case.index
                             assert (fn is None) == case.void
                             if fn is None:
@@ -211,3 +216,20 @@ def _check_switch(fn: Any, st: Any, env: dict[str, Any], conds: dict[str, bool],
     except rt_values.OperationError as e:
         have = ("error", e.code)
     assert have == want, (sub.id, behaviour, conds, have, want)
+
+
+@pytest.mark.parametrize("split,n", [((), 0), ((), 3), ((0, 1), 2), ((1,), 3), ((0, 2), 3),
+                                     ((2, 0, 5), 6)])
+def test_the_row_a_node_computes_is_the_rule_of_rssm_core(split: tuple[int, ...], n: int
+                                                          ) -> None:
+    """The generated row expression is rssm_dsl.semantics.cases.bits for every new(x) mask, and the
+    case in that row covers the mask (the table is ordered as nodecode.mask_of orders it)."""
+    combos = case_rule.combinations(sorted(split), n)
+    for mask in range(1 << n):
+        row = eval(row_source(tuple(sorted(split)), n), {"mask": mask})
+        assert row == case_rule.bits(mask, sorted(split))
+        values = [bool(mask >> k & 1) for k in range(n)]
+        covering = [c for c in combos if case_rule.covers(c, values)]
+        assert len(covering) == 1
+        assert sum(1 << i for i, v in enumerate(x for x in covering[0] if x is not None)
+                   if v) == row

@@ -34,11 +34,13 @@ from rssm_dsl.verify.statespace import explore_full
 ROOT = Path(__file__).resolve().parents[2]
 HERE = Path(__file__).resolve().parent
 FALLBACK = HERE / "specs" / "fallback_never_runs.rssm"
-HANDSHAKE = ROOT / "tests" / "interp" / "specs" / "handshake_deadlock.rssm"
-SPECS = [ROOT / "examples" / "relay_blocking.rssm",
-         ROOT / "examples" / "verify" / "deadlock_pair.rssm",
-         ROOT / "examples" / "verify" / "progress_triple.rssm",
-         HANDSHAKE, ROOT / "tests" / "interp" / "specs" / "starve.rssm", FALLBACK]
+HANDSHAKE = HERE / "specs" / "handshake_cases.rssm"
+UNSPLIT = [ROOT / "examples" / "verify" / "deadlock_pair.rssm",
+           ROOT / "examples" / "verify" / "progress_triple.rssm",
+           ROOT / "tests" / "interp" / "specs" / "handshake_deadlock.rssm"]
+SPLIT = [ROOT / "examples" / "relay_blocking.rssm", HANDSHAKE,
+         ROOT / "tests" / "interp" / "specs" / "starve.rssm", FALLBACK]
+SPECS = SPLIT + UNSPLIT
 
 
 def _compiled(path: Path) -> Compilation:
@@ -94,7 +96,18 @@ def test_same_verdicts_as_with_free_choices(path: Path) -> None:
         assert sorted(c.marking) == sorted(net.places[p].label for p in reached)
 
 
-@pytest.mark.parametrize("path", SPECS, ids=lambda p: p.stem)
+@pytest.mark.parametrize("path", UNSPLIT, ids=lambda p: p.stem)
+def test_without_case_clauses_there_is_nothing_to_track(path: Path) -> None:
+    """No case clause reads new(x): each partial function has one data case, no condition
+    to decide (rssm_dsl/semantics/cases.py), and the net explored is the flat net."""
+    net = _net(path)
+    assert not any(c.kind == "case" for c in net.conditions)
+    assert any(t.role is Role.CASE for t in net.transitions)
+    t = track_new(net)
+    assert not t.tracked and all(o is not None for o in t.place_origin)
+
+
+@pytest.mark.parametrize("path", SPLIT, ids=lambda p: p.stem)
 def test_the_tracked_state_space_is_the_free_one_without_ruled_out_cases(path: Path) -> None:
     """Every tracked marking, without new(x)'s places, is a marking of the free net; every
     marking of the free net with no data case running is one of the tracked net's."""
@@ -133,25 +146,27 @@ def test_a_data_case_that_cannot_happen_is_dead() -> None:
         return {t.label for t in r.dead_transitions or () if t.role is Role.CASE}
 
     assert cases(before) == set()
-    assert cases(tracked) == {"a2.c (track) computes memory when not new(sample)",
-                              "a2.c (wait) computes memory when new(sample)"}
+    # `wait` reads no new(x): its one case runs whatever the data
+    assert cases(tracked) == {"a2.c (track) computes memory when not new(sample)"}
     text = render_text(tracked)
-    assert "new(x): tracked in the state; 4 data case(s)" in text
+    assert "new(x): tracked in the state; 2 data case(s)" in text
     assert "a2.c switches from wait to behaviour track [started] (" in text
 
 
 def test_counterexample_data_cases_follow_the_receives(tmp_path: Path) -> None:
-    """The deadlock of handshake_deadlock.rssm happens in the first iteration, before any
+    """The deadlock of handshake_cases.rssm happens in the first iteration, before any
     receive: its data cases say `not new(answer)`, and the interpreter replays it without
-    forcing a condition (with new(x) a free choice the shortest sequence took `new(answer)`)."""
+    forcing a condition (with new(x) a free choice the shortest sequence took `new(answer)`).
+    The memory functions read no new(x): their one case each is no choice."""
     comp = _compiled(HANDSHAKE)
     assert comp.hpn is not None
     net = flatten(comp.hpn)
     for report, forced in ((verify(net, VerifyOptions(check_progress=False)), 0),
-                           (verify(free(net), VerifyOptions(check_progress=False)), 4)):
+                           (verify(free(net), VerifyOptions(check_progress=False)), 2)):
         assert report.deadlocks
-        cases = [t.label for t in report.deadlocks[0].steps if t.role is Role.CASE]
-        assert len(cases) == 4
+        labels = [t.label for t in report.deadlocks[0].steps if t.role is Role.CASE]
+        cases = [c for c in labels if not c.endswith("when any data")]
+        assert len(labels) == 4 and len(cases) == 2
         assert all(c.endswith("when not new(answer)") for c in cases) == (forced == 0)
         path = tmp_path / "report.json"
         path.write_text(json.dumps(report.to_json()), encoding="utf-8")
@@ -169,7 +184,7 @@ def test_counterexample_data_cases_follow_the_receives(tmp_path: Path) -> None:
 def test_report_lists_the_free_conditions() -> None:
     r = verify(_net(ROOT / "examples" / "relay_blocking.rssm"))
     data = r.to_json()["conditions"]
-    assert data["new_tracked_cases"] == 12
+    assert data["new_tracked_cases"] == 2       # the two cases of `update reply` of a2.c
     free_choices = {(c["kind"], c["where"], c["condition"]) for c in data["free_choices"]}
     assert ("terminal/error", "a1.c (down)", "low") in free_choices
     assert ("terminal/error", "a1.c (up)", "high") in free_choices
@@ -183,8 +198,8 @@ def test_the_net_explored_is_its_own_tracked_net() -> None:
     t = track_new(net)
     assert t.changed and track_new(t.net).net is t.net
     # new(sample), not new(sample), and a second start place for the partial function
-    # of each behaviour (one input: two combinations)
-    assert len(t.net.places) == len(net.places) + 2 + 2
+    # of `track` (one input: two combinations); `wait`'s reads no new(x): one case
+    assert len(t.net.places) == len(net.places) + 2 + 1
     for made in (mode_pair(True, False), send_send_deadlock(), pipeline_ring(3, "BN")):
         assert track_new(made).net is made          # no data cases: nothing to track
     free_net = free(net)
@@ -214,10 +229,13 @@ def test_the_hpn_with_new_x_flattens_to_the_tracked_net(path: Path) -> None:
 
 @pytest.mark.parametrize("n", [1, 2, 3])
 def test_combinations_are_numbered_as_the_data_cases(n: int) -> None:
-    from rssm_dsl.semantics.behaviours import combinations
+    from rssm_dsl.semantics.cases import combinations
 
-    for varpi, new in enumerate(combinations(n), start=1):
+    for varpi, new in enumerate(combinations(range(n), n), start=1):
         assert varpi_of(new) == varpi and combination(varpi, n) == new
+    # over some of the inputs: numbered over those, the others not split
+    for varpi, new in enumerate(combinations([n], n + 2), start=1):
+        assert varpi_of(new) == varpi and new[n] == (varpi == 1)
 
 
 def test_the_compositional_check_and_stubborn_sets_agree() -> None:

@@ -6,7 +6,9 @@ the behaviour's page in the HPN (rssm_dsl.hpn.pattern; a send or receive line is
 when the behaviour has no such arrangement):
 
     mask = r.begin()                      # new(x) of every input, frozen for P^f
-    r.partial(psi, CASES[mask], st, stage)  # each partial function from the pre-state
+    r.partial(psi, CASES[row], st, stage)   # each partial function from the pre-state; row:
+                                          # new(x) of the inputs its cases split, as bits
+                                          # (rssm_dsl.semantics.cases.bits of mask)
     r.commit(stage)                       # memory s^{i+1} and the outputs; new(x) cleared
     yield from r.send(SEND)               # the send arrangement
     r.increment()                         # i := i + 1

@@ -130,12 +130,10 @@ def cond_2_2(st: State) -> bool:
 # ---------------------------------------------------------------- behaviour search: P^B[1,c,search]
 
 CASES_1_1 = (  # search: update goal
-    (2, f_1_1_1),  # not new(target)
-    (1, f_1_1_1),  # new(target)
+    (1, f_1_1_1),  # any data
 )
 CASES_1_2 = (  # search: update memory
-    (2, f_1_2_1),  # not new(target)
-    (1, f_1_2_1),  # new(target)
+    (1, f_1_2_1),  # any data
 )
 CONDITIONS_1 = (('found', 'terminal', cond_1_1),)
 
@@ -145,8 +143,8 @@ def iterate_1(r: _Runner) -> _Iteration:
     st = r.state
     mask = r.begin()  # new(x) of the inputs, frozen for the transition function
     stage: dict[str, Any] = {}
-    r.partial(CASES_1_1[mask], st, stage)  # f[1,c,search,1]: update goal
-    r.partial(CASES_1_2[mask], st, stage)  # f[1,c,search,2]: update memory
+    r.partial(CASES_1_1[0], st, stage)  # f[1,c,search,1]: update goal
+    r.partial(CASES_1_2[0], st, stage)  # f[1,c,search,2]: update memory
     r.commit(stage)  # memory and outputs of i + 1; new(x) cleared
     yield from r.send(('buf', 'goal'))
     r.increment()  # i := i + 1
@@ -165,8 +163,7 @@ def switch_1(st: State, conds: Mapping[str, bool]) -> str | None:
 # ---------------------------------------------------------------- behaviour track: P^B[1,c,track]
 
 CASES_2_1 = (  # track: update goal
-    (2, f_2_1_1),  # not new(target)
-    (1, f_2_1_1),  # new(target)
+    (1, f_2_1_1),  # any data
 )
 CASES_2_2 = (  # track: update memory
     (2, f_2_2_2),  # not new(target)
@@ -180,7 +177,7 @@ def iterate_2(r: _Runner) -> _Iteration:
     st = r.state
     mask = r.begin()  # new(x) of the inputs, frozen for the transition function
     stage: dict[str, Any] = {}
-    r.partial(CASES_2_1[mask], st, stage)  # f[1,c,track,1]: update goal
+    r.partial(CASES_2_1[0], st, stage)  # f[1,c,track,1]: update goal
     r.partial(CASES_2_2[mask], st, stage)  # f[1,c,track,2]: update memory
     r.commit(stage)  # memory and outputs of i + 1; new(x) cleared
     yield from r.send(('buf', 'goal'))

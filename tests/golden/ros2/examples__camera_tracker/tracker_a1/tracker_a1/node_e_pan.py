@@ -86,16 +86,11 @@ def cond_1_1(st: State) -> bool:
 # ---------------------------------------------------------------- behaviour drive: P^B[1,pan,drive]
 
 CASES_1_1 = (  # drive: update command
-    (4, f_1_1_1),  # not new(goal) and not new(angle)
-    (3, f_1_1_1),  # new(goal) and not new(angle)
-    (2, f_1_1_1),  # not new(goal) and new(angle)
-    (1, f_1_1_1),  # new(goal) and new(angle)
+    (1, f_1_1_1),  # any data
 )
 CASES_1_2 = (  # drive: update memory
-    (4, None),  # not new(goal) and not new(angle)
-    (3, f_1_2_1),  # new(goal) and not new(angle)
-    (2, None),  # not new(goal) and new(angle)
-    (1, f_1_2_1),  # new(goal) and new(angle)
+    (2, None),  # not new(goal)
+    (1, f_1_2_1),  # new(goal)
 )
 CONDITIONS_1 = (('never', 'terminal', cond_1_1),)
 
@@ -105,8 +100,8 @@ def iterate_1(r: _Runner) -> _Iteration:
     st = r.state
     mask = r.begin()  # new(x) of the inputs, frozen for the transition function
     stage: dict[str, Any] = {}
-    r.partial(CASES_1_1[mask], st, stage)  # f[1,pan,drive,1]: update command
-    r.partial(CASES_1_2[mask], st, stage)  # f[1,pan,drive,2]: update memory
+    r.partial(CASES_1_1[0], st, stage)  # f[1,pan,drive,1]: update command
+    r.partial(CASES_1_2[(mask >> 0 & 1)], st, stage)  # f[1,pan,drive,2]: update memory
     r.commit(stage)  # memory and outputs of i + 1; new(x) cleared
     yield from r.send(('buf', 'command'))
     r.increment()  # i := i + 1

@@ -80,8 +80,7 @@ CASES_1_1 = (  # filter: update target
     (1, f_1_1_1),  # new(frame)
 )
 CASES_1_2 = (  # filter: update memory
-    (2, None),  # not new(frame)
-    (1, None),  # new(frame)
+    (1, None),  # any data
 )
 CONDITIONS_1 = (('never', 'terminal', cond_1_1),)
 
@@ -92,7 +91,7 @@ def iterate_1(r: _Runner) -> _Iteration:
     mask = r.begin()  # new(x) of the inputs, frozen for the transition function
     stage: dict[str, Any] = {}
     r.partial(CASES_1_1[mask], st, stage)  # f[1,vision,filter,1]: update target
-    r.partial(CASES_1_2[mask], st, stage)  # f[1,vision,filter,2]: update memory
+    r.partial(CASES_1_2[0], st, stage)  # f[1,vision,filter,2]: update memory
     r.commit(stage)  # memory and outputs of i + 1; new(x) cleared
     yield from r.send(('buf', 'target'))
     r.increment()  # i := i + 1

@@ -86,8 +86,7 @@ def cond_3_1(st: State) -> bool:
 # ---------------------------------------------------------------- behaviour warming: P^B[1,c,warming]
 
 CASES_1_1 = (  # warming: update memory
-    (2, None),  # not new(temperatures)
-    (1, None),  # new(temperatures)
+    (1, None),  # any data
 )
 CONDITIONS_1 = (('small_hot', 'terminal', cond_1_1), ('big_hot', 'terminal', cond_1_2))
 
@@ -97,7 +96,7 @@ def iterate_1(r: _Runner) -> _Iteration:
     st = r.state
     mask = r.begin()  # new(x) of the inputs, frozen for the transition function
     stage: dict[str, Any] = {}
-    r.partial(CASES_1_1[mask], st, stage)  # f[1,c,warming,1]: update memory
+    r.partial(CASES_1_1[0], st, stage)  # f[1,c,warming,1]: update memory
     r.commit(stage)  # memory and outputs of i + 1; new(x) cleared
     r.increment()  # i := i + 1
     yield from r.receive(('buf', 'temperatures'))
@@ -115,8 +114,7 @@ def switch_1(st: State, conds: Mapping[str, bool]) -> str | None:
 # ---------------------------------------------------------------- behaviour big_first: P^B[1,c,big_first]
 
 CASES_2_1 = (  # big_first: update memory
-    (2, None),  # not new(temperatures)
-    (1, None),  # new(temperatures)
+    (1, None),  # any data
 )
 CONDITIONS_2 = (('never', 'terminal', cond_2_1),)
 
@@ -126,7 +124,7 @@ def iterate_2(r: _Runner) -> _Iteration:
     st = r.state
     mask = r.begin()  # new(x) of the inputs, frozen for the transition function
     stage: dict[str, Any] = {}
-    r.partial(CASES_2_1[mask], st, stage)  # f[1,c,big_first,1]: update memory
+    r.partial(CASES_2_1[0], st, stage)  # f[1,c,big_first,1]: update memory
     r.commit(stage)  # memory and outputs of i + 1; new(x) cleared
     r.increment()  # i := i + 1
     yield from r.receive(('buf', 'temperatures'))
@@ -141,8 +139,7 @@ def switch_2(st: State, conds: Mapping[str, bool]) -> str | None:
 # ---------------------------------------------------------------- behaviour small_first: P^B[1,c,small_first]
 
 CASES_3_1 = (  # small_first: update memory
-    (2, None),  # not new(temperatures)
-    (1, None),  # new(temperatures)
+    (1, None),  # any data
 )
 CONDITIONS_3 = (('never', 'terminal', cond_3_1),)
 
@@ -152,7 +149,7 @@ def iterate_3(r: _Runner) -> _Iteration:
     st = r.state
     mask = r.begin()  # new(x) of the inputs, frozen for the transition function
     stage: dict[str, Any] = {}
-    r.partial(CASES_3_1[mask], st, stage)  # f[1,c,small_first,1]: update memory
+    r.partial(CASES_3_1[0], st, stage)  # f[1,c,small_first,1]: update memory
     r.commit(stage)  # memory and outputs of i + 1; new(x) cleared
     r.increment()  # i := i + 1
     yield from r.receive(('buf', 'temperatures'))

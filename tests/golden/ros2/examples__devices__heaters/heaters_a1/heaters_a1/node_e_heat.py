@@ -101,28 +101,16 @@ def cond_1_1(st: State) -> bool:
 # ---------------------------------------------------------------- behaviour regulate: P^B[1,heat,regulate]
 
 CASES_1_1 = (  # regulate: update small_p
-    (4, f_1_1_1),  # not new(small_t) and not new(big_t)
-    (3, f_1_1_1),  # new(small_t) and not new(big_t)
-    (2, f_1_1_1),  # not new(small_t) and new(big_t)
-    (1, f_1_1_1),  # new(small_t) and new(big_t)
+    (1, f_1_1_1),  # any data
 )
 CASES_1_2 = (  # regulate: update big_p
-    (4, f_1_2_1),  # not new(small_t) and not new(big_t)
-    (3, f_1_2_1),  # new(small_t) and not new(big_t)
-    (2, f_1_2_1),  # not new(small_t) and new(big_t)
-    (1, f_1_2_1),  # new(small_t) and new(big_t)
+    (1, f_1_2_1),  # any data
 )
 CASES_1_3 = (  # regulate: update temperatures
-    (4, f_1_3_1),  # not new(small_t) and not new(big_t)
-    (3, f_1_3_1),  # new(small_t) and not new(big_t)
-    (2, f_1_3_1),  # not new(small_t) and new(big_t)
-    (1, f_1_3_1),  # new(small_t) and new(big_t)
+    (1, f_1_3_1),  # any data
 )
 CASES_1_4 = (  # regulate: update memory
-    (4, None),  # not new(small_t) and not new(big_t)
-    (3, None),  # new(small_t) and not new(big_t)
-    (2, None),  # not new(small_t) and new(big_t)
-    (1, None),  # new(small_t) and new(big_t)
+    (1, None),  # any data
 )
 CONDITIONS_1 = (('never', 'terminal', cond_1_1),)
 
@@ -132,10 +120,10 @@ def iterate_1(r: _Runner) -> _Iteration:
     st = r.state
     mask = r.begin()  # new(x) of the inputs, frozen for the transition function
     stage: dict[str, Any] = {}
-    r.partial(CASES_1_1[mask], st, stage)  # f[1,heat,regulate,1]: update small_p
-    r.partial(CASES_1_2[mask], st, stage)  # f[1,heat,regulate,2]: update big_p
-    r.partial(CASES_1_3[mask], st, stage)  # f[1,heat,regulate,3]: update temperatures
-    r.partial(CASES_1_4[mask], st, stage)  # f[1,heat,regulate,4]: update memory
+    r.partial(CASES_1_1[0], st, stage)  # f[1,heat,regulate,1]: update small_p
+    r.partial(CASES_1_2[0], st, stage)  # f[1,heat,regulate,2]: update big_p
+    r.partial(CASES_1_3[0], st, stage)  # f[1,heat,regulate,3]: update temperatures
+    r.partial(CASES_1_4[0], st, stage)  # f[1,heat,regulate,4]: update memory
     r.commit(stage)  # memory and outputs of i + 1; new(x) cleared
     yield from r.send(('seq', (('buf', 'small_p'), ('buf', 'big_p'), ('buf', 'temperatures'))))
     r.increment()  # i := i + 1

@@ -92,16 +92,13 @@ def cond_1_1(st: State) -> bool:
 # ---------------------------------------------------------------- behaviour hold: P^B[giver,c,hold]
 
 CASES_1_1 = (  # hold: update ready
-    (2, f_1_1_1),  # not new(other)
-    (1, f_1_1_1),  # new(other)
+    (1, f_1_1_1),  # any data
 )
 CASES_1_2 = (  # hold: update goal
-    (2, f_1_2_1),  # not new(other)
-    (1, f_1_2_1),  # new(other)
+    (1, f_1_2_1),  # any data
 )
 CASES_1_3 = (  # hold: update memory
-    (2, f_1_3_1),  # not new(other)
-    (1, f_1_3_1),  # new(other)
+    (1, f_1_3_1),  # any data
 )
 CONDITIONS_1 = (('never', 'terminal', cond_1_1),)
 
@@ -111,9 +108,9 @@ def iterate_1(r: _Runner) -> _Iteration:
     st = r.state
     mask = r.begin()  # new(x) of the inputs, frozen for the transition function
     stage: dict[str, Any] = {}
-    r.partial(CASES_1_1[mask], st, stage)  # f[giver,c,hold,1]: update ready
-    r.partial(CASES_1_2[mask], st, stage)  # f[giver,c,hold,2]: update goal
-    r.partial(CASES_1_3[mask], st, stage)  # f[giver,c,hold,3]: update memory
+    r.partial(CASES_1_1[0], st, stage)  # f[giver,c,hold,1]: update ready
+    r.partial(CASES_1_2[0], st, stage)  # f[giver,c,hold,2]: update goal
+    r.partial(CASES_1_3[0], st, stage)  # f[giver,c,hold,3]: update memory
     r.commit(stage)  # memory and outputs of i + 1; new(x) cleared
     yield from r.send(('seq', (('buf', 'ready'), ('buf', 'goal'))))
     r.increment()  # i := i + 1

@@ -76,16 +76,10 @@ def cond_1_1(st: State) -> bool:
 # ---------------------------------------------------------------- behaviour follow: P^B[taker,arm,follow]
 
 CASES_1_1 = (  # follow: update command
-    (4, f_1_1_1),  # not new(goal) and not new(position)
-    (3, f_1_1_1),  # new(goal) and not new(position)
-    (2, f_1_1_1),  # not new(goal) and new(position)
-    (1, f_1_1_1),  # new(goal) and new(position)
+    (1, f_1_1_1),  # any data
 )
 CASES_1_2 = (  # follow: update memory
-    (4, None),  # not new(goal) and not new(position)
-    (3, None),  # new(goal) and not new(position)
-    (2, None),  # not new(goal) and new(position)
-    (1, None),  # new(goal) and new(position)
+    (1, None),  # any data
 )
 CONDITIONS_1 = (('never', 'terminal', cond_1_1),)
 
@@ -95,8 +89,8 @@ def iterate_1(r: _Runner) -> _Iteration:
     st = r.state
     mask = r.begin()  # new(x) of the inputs, frozen for the transition function
     stage: dict[str, Any] = {}
-    r.partial(CASES_1_1[mask], st, stage)  # f[taker,arm,follow,1]: update command
-    r.partial(CASES_1_2[mask], st, stage)  # f[taker,arm,follow,2]: update memory
+    r.partial(CASES_1_1[0], st, stage)  # f[taker,arm,follow,1]: update command
+    r.partial(CASES_1_2[0], st, stage)  # f[taker,arm,follow,2]: update memory
     r.commit(stage)  # memory and outputs of i + 1; new(x) cleared
     yield from r.send(('buf', 'command'))
     r.increment()  # i := i + 1

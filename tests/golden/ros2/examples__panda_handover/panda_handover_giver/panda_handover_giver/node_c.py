@@ -219,22 +219,13 @@ def cond_5_1(st: State) -> bool:
 # ---------------------------------------------------------------- behaviour fetch: P^B[giver,c,fetch]
 
 CASES_1_1 = (  # fetch: update cmd
-    (4, f_1_1_1),  # not new(joints) and not new(taker)
-    (3, f_1_1_1),  # new(joints) and not new(taker)
-    (2, f_1_1_1),  # not new(joints) and new(taker)
-    (1, f_1_1_1),  # new(joints) and new(taker)
+    (1, f_1_1_1),  # any data
 )
 CASES_1_2 = (  # fetch: update offering
-    (4, f_1_2_1),  # not new(joints) and not new(taker)
-    (3, f_1_2_1),  # new(joints) and not new(taker)
-    (2, f_1_2_1),  # not new(joints) and new(taker)
-    (1, f_1_2_1),  # new(joints) and new(taker)
+    (1, f_1_2_1),  # any data
 )
 CASES_1_3 = (  # fetch: update memory
-    (4, f_1_3_1),  # not new(joints) and not new(taker)
-    (3, f_1_3_1),  # new(joints) and not new(taker)
-    (2, f_1_3_1),  # not new(joints) and new(taker)
-    (1, f_1_3_1),  # new(joints) and new(taker)
+    (1, f_1_3_1),  # any data
 )
 CONDITIONS_1 = (('at_meet', 'terminal', cond_1_1),)
 
@@ -244,9 +235,9 @@ def iterate_1(r: _Runner) -> _Iteration:
     st = r.state
     mask = r.begin()  # new(x) of the inputs, frozen for the transition function
     stage: dict[str, Any] = {}
-    r.partial(CASES_1_1[mask], st, stage)  # f[giver,c,fetch,1]: update cmd
-    r.partial(CASES_1_2[mask], st, stage)  # f[giver,c,fetch,2]: update offering
-    r.partial(CASES_1_3[mask], st, stage)  # f[giver,c,fetch,3]: update memory
+    r.partial(CASES_1_1[0], st, stage)  # f[giver,c,fetch,1]: update cmd
+    r.partial(CASES_1_2[0], st, stage)  # f[giver,c,fetch,2]: update offering
+    r.partial(CASES_1_3[0], st, stage)  # f[giver,c,fetch,3]: update memory
     r.commit(stage)  # memory and outputs of i + 1; new(x) cleared
     yield from r.send(('seq', (('buf', 'cmd'), ('buf', 'offering'))))
     r.increment()  # i := i + 1
@@ -265,22 +256,13 @@ def switch_1(st: State, conds: Mapping[str, bool]) -> str | None:
 # ---------------------------------------------------------------- behaviour offer: P^B[giver,c,offer]
 
 CASES_2_1 = (  # offer: update cmd
-    (4, f_2_1_1),  # not new(joints) and not new(taker)
-    (3, f_2_1_1),  # new(joints) and not new(taker)
-    (2, f_2_1_1),  # not new(joints) and new(taker)
-    (1, f_2_1_1),  # new(joints) and new(taker)
+    (1, f_2_1_1),  # any data
 )
 CASES_2_2 = (  # offer: update offering
-    (4, f_2_2_1),  # not new(joints) and not new(taker)
-    (3, f_2_2_1),  # new(joints) and not new(taker)
-    (2, f_2_2_1),  # not new(joints) and new(taker)
-    (1, f_2_2_1),  # new(joints) and new(taker)
+    (1, f_2_2_1),  # any data
 )
 CASES_2_3 = (  # offer: update memory
-    (4, f_2_3_1),  # not new(joints) and not new(taker)
-    (3, f_2_3_1),  # new(joints) and not new(taker)
-    (2, f_2_3_1),  # not new(joints) and new(taker)
-    (1, f_2_3_1),  # new(joints) and new(taker)
+    (1, f_2_3_1),  # any data
 )
 CONDITIONS_2 = (('taken', 'terminal', cond_2_1),)
 
@@ -290,9 +272,9 @@ def iterate_2(r: _Runner) -> _Iteration:
     st = r.state
     mask = r.begin()  # new(x) of the inputs, frozen for the transition function
     stage: dict[str, Any] = {}
-    r.partial(CASES_2_1[mask], st, stage)  # f[giver,c,offer,1]: update cmd
-    r.partial(CASES_2_2[mask], st, stage)  # f[giver,c,offer,2]: update offering
-    r.partial(CASES_2_3[mask], st, stage)  # f[giver,c,offer,3]: update memory
+    r.partial(CASES_2_1[0], st, stage)  # f[giver,c,offer,1]: update cmd
+    r.partial(CASES_2_2[0], st, stage)  # f[giver,c,offer,2]: update offering
+    r.partial(CASES_2_3[0], st, stage)  # f[giver,c,offer,3]: update memory
     r.commit(stage)  # memory and outputs of i + 1; new(x) cleared
     yield from r.send(('seq', (('buf', 'cmd'), ('buf', 'offering'))))
     r.increment()  # i := i + 1
@@ -311,22 +293,13 @@ def switch_2(st: State, conds: Mapping[str, bool]) -> str | None:
 # ---------------------------------------------------------------- behaviour release: P^B[giver,c,release]
 
 CASES_3_1 = (  # release: update cmd
-    (4, f_3_1_1),  # not new(joints) and not new(taker)
-    (3, f_3_1_1),  # new(joints) and not new(taker)
-    (2, f_3_1_1),  # not new(joints) and new(taker)
-    (1, f_3_1_1),  # new(joints) and new(taker)
+    (1, f_3_1_1),  # any data
 )
 CASES_3_2 = (  # release: update offering
-    (4, f_3_2_1),  # not new(joints) and not new(taker)
-    (3, f_3_2_1),  # new(joints) and not new(taker)
-    (2, f_3_2_1),  # not new(joints) and new(taker)
-    (1, f_3_2_1),  # new(joints) and new(taker)
+    (1, f_3_2_1),  # any data
 )
 CASES_3_3 = (  # release: update memory
-    (4, f_3_3_1),  # not new(joints) and not new(taker)
-    (3, f_3_3_1),  # new(joints) and not new(taker)
-    (2, f_3_3_1),  # not new(joints) and new(taker)
-    (1, f_3_3_1),  # new(joints) and new(taker)
+    (1, f_3_3_1),  # any data
 )
 CONDITIONS_3 = (('opened', 'terminal', cond_3_1),)
 
@@ -336,9 +309,9 @@ def iterate_3(r: _Runner) -> _Iteration:
     st = r.state
     mask = r.begin()  # new(x) of the inputs, frozen for the transition function
     stage: dict[str, Any] = {}
-    r.partial(CASES_3_1[mask], st, stage)  # f[giver,c,release,1]: update cmd
-    r.partial(CASES_3_2[mask], st, stage)  # f[giver,c,release,2]: update offering
-    r.partial(CASES_3_3[mask], st, stage)  # f[giver,c,release,3]: update memory
+    r.partial(CASES_3_1[0], st, stage)  # f[giver,c,release,1]: update cmd
+    r.partial(CASES_3_2[0], st, stage)  # f[giver,c,release,2]: update offering
+    r.partial(CASES_3_3[0], st, stage)  # f[giver,c,release,3]: update memory
     r.commit(stage)  # memory and outputs of i + 1; new(x) cleared
     yield from r.send(('seq', (('buf', 'cmd'), ('buf', 'offering'))))
     r.increment()  # i := i + 1
@@ -357,22 +330,13 @@ def switch_3(st: State, conds: Mapping[str, bool]) -> str | None:
 # ---------------------------------------------------------------- behaviour back: P^B[giver,c,back]
 
 CASES_4_1 = (  # back: update cmd
-    (4, f_4_1_1),  # not new(joints) and not new(taker)
-    (3, f_4_1_1),  # new(joints) and not new(taker)
-    (2, f_4_1_1),  # not new(joints) and new(taker)
-    (1, f_4_1_1),  # new(joints) and new(taker)
+    (1, f_4_1_1),  # any data
 )
 CASES_4_2 = (  # back: update offering
-    (4, f_4_2_1),  # not new(joints) and not new(taker)
-    (3, f_4_2_1),  # new(joints) and not new(taker)
-    (2, f_4_2_1),  # not new(joints) and new(taker)
-    (1, f_4_2_1),  # new(joints) and new(taker)
+    (1, f_4_2_1),  # any data
 )
 CASES_4_3 = (  # back: update memory
-    (4, f_4_3_1),  # not new(joints) and not new(taker)
-    (3, f_4_3_1),  # new(joints) and not new(taker)
-    (2, f_4_3_1),  # not new(joints) and new(taker)
-    (1, f_4_3_1),  # new(joints) and new(taker)
+    (1, f_4_3_1),  # any data
 )
 CONDITIONS_4 = (('at_pick', 'terminal', cond_4_1),)
 
@@ -382,9 +346,9 @@ def iterate_4(r: _Runner) -> _Iteration:
     st = r.state
     mask = r.begin()  # new(x) of the inputs, frozen for the transition function
     stage: dict[str, Any] = {}
-    r.partial(CASES_4_1[mask], st, stage)  # f[giver,c,back,1]: update cmd
-    r.partial(CASES_4_2[mask], st, stage)  # f[giver,c,back,2]: update offering
-    r.partial(CASES_4_3[mask], st, stage)  # f[giver,c,back,3]: update memory
+    r.partial(CASES_4_1[0], st, stage)  # f[giver,c,back,1]: update cmd
+    r.partial(CASES_4_2[0], st, stage)  # f[giver,c,back,2]: update offering
+    r.partial(CASES_4_3[0], st, stage)  # f[giver,c,back,3]: update memory
     r.commit(stage)  # memory and outputs of i + 1; new(x) cleared
     yield from r.send(('seq', (('buf', 'cmd'), ('buf', 'offering'))))
     r.increment()  # i := i + 1
@@ -403,22 +367,13 @@ def switch_4(st: State, conds: Mapping[str, bool]) -> str | None:
 # ---------------------------------------------------------------- behaviour pause: P^B[giver,c,pause]
 
 CASES_5_1 = (  # pause: update cmd
-    (4, f_5_1_1),  # not new(joints) and not new(taker)
-    (3, f_5_1_1),  # new(joints) and not new(taker)
-    (2, f_5_1_1),  # not new(joints) and new(taker)
-    (1, f_5_1_1),  # new(joints) and new(taker)
+    (1, f_5_1_1),  # any data
 )
 CASES_5_2 = (  # pause: update offering
-    (4, f_5_2_1),  # not new(joints) and not new(taker)
-    (3, f_5_2_1),  # new(joints) and not new(taker)
-    (2, f_5_2_1),  # not new(joints) and new(taker)
-    (1, f_5_2_1),  # new(joints) and new(taker)
+    (1, f_5_2_1),  # any data
 )
 CASES_5_3 = (  # pause: update memory
-    (4, f_5_3_1),  # not new(joints) and not new(taker)
-    (3, f_5_3_1),  # new(joints) and not new(taker)
-    (2, f_5_3_1),  # not new(joints) and new(taker)
-    (1, f_5_3_1),  # new(joints) and new(taker)
+    (1, f_5_3_1),  # any data
 )
 CONDITIONS_5 = (('clear', 'terminal', cond_5_1),)
 
@@ -428,9 +383,9 @@ def iterate_5(r: _Runner) -> _Iteration:
     st = r.state
     mask = r.begin()  # new(x) of the inputs, frozen for the transition function
     stage: dict[str, Any] = {}
-    r.partial(CASES_5_1[mask], st, stage)  # f[giver,c,pause,1]: update cmd
-    r.partial(CASES_5_2[mask], st, stage)  # f[giver,c,pause,2]: update offering
-    r.partial(CASES_5_3[mask], st, stage)  # f[giver,c,pause,3]: update memory
+    r.partial(CASES_5_1[0], st, stage)  # f[giver,c,pause,1]: update cmd
+    r.partial(CASES_5_2[0], st, stage)  # f[giver,c,pause,2]: update offering
+    r.partial(CASES_5_3[0], st, stage)  # f[giver,c,pause,3]: update memory
     r.commit(stage)  # memory and outputs of i + 1; new(x) cleared
     yield from r.send(('seq', (('buf', 'cmd'), ('buf', 'offering'))))
     r.increment()  # i := i + 1

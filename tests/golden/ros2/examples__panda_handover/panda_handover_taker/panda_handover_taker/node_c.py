@@ -218,22 +218,13 @@ def cond_5_1(st: State) -> bool:
 # ---------------------------------------------------------------- behaviour wait: P^B[taker,c,wait]
 
 CASES_1_1 = (  # wait: update cmd
-    (4, f_1_1_1),  # not new(joints) and not new(offering)
-    (3, f_1_1_1),  # new(joints) and not new(offering)
-    (2, f_1_1_1),  # not new(joints) and new(offering)
-    (1, f_1_1_1),  # new(joints) and new(offering)
+    (1, f_1_1_1),  # any data
 )
 CASES_1_2 = (  # wait: update state
-    (4, f_1_2_1),  # not new(joints) and not new(offering)
-    (3, f_1_2_1),  # new(joints) and not new(offering)
-    (2, f_1_2_1),  # not new(joints) and new(offering)
-    (1, f_1_2_1),  # new(joints) and new(offering)
+    (1, f_1_2_1),  # any data
 )
 CASES_1_3 = (  # wait: update memory
-    (4, f_1_3_1),  # not new(joints) and not new(offering)
-    (3, f_1_3_1),  # new(joints) and not new(offering)
-    (2, f_1_3_1),  # not new(joints) and new(offering)
-    (1, f_1_3_1),  # new(joints) and new(offering)
+    (1, f_1_3_1),  # any data
 )
 CONDITIONS_1 = (('told', 'terminal', cond_1_1),)
 
@@ -243,9 +234,9 @@ def iterate_1(r: _Runner) -> _Iteration:
     st = r.state
     mask = r.begin()  # new(x) of the inputs, frozen for the transition function
     stage: dict[str, Any] = {}
-    r.partial(CASES_1_1[mask], st, stage)  # f[taker,c,wait,1]: update cmd
-    r.partial(CASES_1_2[mask], st, stage)  # f[taker,c,wait,2]: update state
-    r.partial(CASES_1_3[mask], st, stage)  # f[taker,c,wait,3]: update memory
+    r.partial(CASES_1_1[0], st, stage)  # f[taker,c,wait,1]: update cmd
+    r.partial(CASES_1_2[0], st, stage)  # f[taker,c,wait,2]: update state
+    r.partial(CASES_1_3[0], st, stage)  # f[taker,c,wait,3]: update memory
     r.commit(stage)  # memory and outputs of i + 1; new(x) cleared
     yield from r.send(('seq', (('buf', 'cmd'), ('buf', 'state'))))
     r.increment()  # i := i + 1
@@ -264,22 +255,13 @@ def switch_1(st: State, conds: Mapping[str, bool]) -> str | None:
 # ---------------------------------------------------------------- behaviour approach: P^B[taker,c,approach]
 
 CASES_2_1 = (  # approach: update cmd
-    (4, f_2_1_1),  # not new(joints) and not new(offering)
-    (3, f_2_1_1),  # new(joints) and not new(offering)
-    (2, f_2_1_1),  # not new(joints) and new(offering)
-    (1, f_2_1_1),  # new(joints) and new(offering)
+    (1, f_2_1_1),  # any data
 )
 CASES_2_2 = (  # approach: update state
-    (4, f_2_2_1),  # not new(joints) and not new(offering)
-    (3, f_2_2_1),  # new(joints) and not new(offering)
-    (2, f_2_2_1),  # not new(joints) and new(offering)
-    (1, f_2_2_1),  # new(joints) and new(offering)
+    (1, f_2_2_1),  # any data
 )
 CASES_2_3 = (  # approach: update memory
-    (4, f_2_3_1),  # not new(joints) and not new(offering)
-    (3, f_2_3_1),  # new(joints) and not new(offering)
-    (2, f_2_3_1),  # not new(joints) and new(offering)
-    (1, f_2_3_1),  # new(joints) and new(offering)
+    (1, f_2_3_1),  # any data
 )
 CONDITIONS_2 = (('at_meet', 'terminal', cond_2_1),)
 
@@ -289,9 +271,9 @@ def iterate_2(r: _Runner) -> _Iteration:
     st = r.state
     mask = r.begin()  # new(x) of the inputs, frozen for the transition function
     stage: dict[str, Any] = {}
-    r.partial(CASES_2_1[mask], st, stage)  # f[taker,c,approach,1]: update cmd
-    r.partial(CASES_2_2[mask], st, stage)  # f[taker,c,approach,2]: update state
-    r.partial(CASES_2_3[mask], st, stage)  # f[taker,c,approach,3]: update memory
+    r.partial(CASES_2_1[0], st, stage)  # f[taker,c,approach,1]: update cmd
+    r.partial(CASES_2_2[0], st, stage)  # f[taker,c,approach,2]: update state
+    r.partial(CASES_2_3[0], st, stage)  # f[taker,c,approach,3]: update memory
     r.commit(stage)  # memory and outputs of i + 1; new(x) cleared
     yield from r.send(('seq', (('buf', 'cmd'), ('buf', 'state'))))
     r.increment()  # i := i + 1
@@ -310,22 +292,13 @@ def switch_2(st: State, conds: Mapping[str, bool]) -> str | None:
 # ---------------------------------------------------------------- behaviour grasp: P^B[taker,c,grasp]
 
 CASES_3_1 = (  # grasp: update cmd
-    (4, f_3_1_1),  # not new(joints) and not new(offering)
-    (3, f_3_1_1),  # new(joints) and not new(offering)
-    (2, f_3_1_1),  # not new(joints) and new(offering)
-    (1, f_3_1_1),  # new(joints) and new(offering)
+    (1, f_3_1_1),  # any data
 )
 CASES_3_2 = (  # grasp: update state
-    (4, f_3_2_1),  # not new(joints) and not new(offering)
-    (3, f_3_2_1),  # new(joints) and not new(offering)
-    (2, f_3_2_1),  # not new(joints) and new(offering)
-    (1, f_3_2_1),  # new(joints) and new(offering)
+    (1, f_3_2_1),  # any data
 )
 CASES_3_3 = (  # grasp: update memory
-    (4, f_3_3_1),  # not new(joints) and not new(offering)
-    (3, f_3_3_1),  # new(joints) and not new(offering)
-    (2, f_3_3_1),  # not new(joints) and new(offering)
-    (1, f_3_3_1),  # new(joints) and new(offering)
+    (1, f_3_3_1),  # any data
 )
 CONDITIONS_3 = (('closed', 'terminal', cond_3_1),)
 
@@ -335,9 +308,9 @@ def iterate_3(r: _Runner) -> _Iteration:
     st = r.state
     mask = r.begin()  # new(x) of the inputs, frozen for the transition function
     stage: dict[str, Any] = {}
-    r.partial(CASES_3_1[mask], st, stage)  # f[taker,c,grasp,1]: update cmd
-    r.partial(CASES_3_2[mask], st, stage)  # f[taker,c,grasp,2]: update state
-    r.partial(CASES_3_3[mask], st, stage)  # f[taker,c,grasp,3]: update memory
+    r.partial(CASES_3_1[0], st, stage)  # f[taker,c,grasp,1]: update cmd
+    r.partial(CASES_3_2[0], st, stage)  # f[taker,c,grasp,2]: update state
+    r.partial(CASES_3_3[0], st, stage)  # f[taker,c,grasp,3]: update memory
     r.commit(stage)  # memory and outputs of i + 1; new(x) cleared
     yield from r.send(('seq', (('buf', 'cmd'), ('buf', 'state'))))
     r.increment()  # i := i + 1
@@ -356,22 +329,13 @@ def switch_3(st: State, conds: Mapping[str, bool]) -> str | None:
 # ---------------------------------------------------------------- behaviour hold: P^B[taker,c,hold]
 
 CASES_4_1 = (  # hold: update cmd
-    (4, f_4_1_1),  # not new(joints) and not new(offering)
-    (3, f_4_1_1),  # new(joints) and not new(offering)
-    (2, f_4_1_1),  # not new(joints) and new(offering)
-    (1, f_4_1_1),  # new(joints) and new(offering)
+    (1, f_4_1_1),  # any data
 )
 CASES_4_2 = (  # hold: update state
-    (4, f_4_2_1),  # not new(joints) and not new(offering)
-    (3, f_4_2_1),  # new(joints) and not new(offering)
-    (2, f_4_2_1),  # not new(joints) and new(offering)
-    (1, f_4_2_1),  # new(joints) and new(offering)
+    (1, f_4_2_1),  # any data
 )
 CASES_4_3 = (  # hold: update memory
-    (4, f_4_3_1),  # not new(joints) and not new(offering)
-    (3, f_4_3_1),  # new(joints) and not new(offering)
-    (2, f_4_3_1),  # not new(joints) and new(offering)
-    (1, f_4_3_1),  # new(joints) and new(offering)
+    (1, f_4_3_1),  # any data
 )
 CONDITIONS_4 = (('free', 'terminal', cond_4_1),)
 
@@ -381,9 +345,9 @@ def iterate_4(r: _Runner) -> _Iteration:
     st = r.state
     mask = r.begin()  # new(x) of the inputs, frozen for the transition function
     stage: dict[str, Any] = {}
-    r.partial(CASES_4_1[mask], st, stage)  # f[taker,c,hold,1]: update cmd
-    r.partial(CASES_4_2[mask], st, stage)  # f[taker,c,hold,2]: update state
-    r.partial(CASES_4_3[mask], st, stage)  # f[taker,c,hold,3]: update memory
+    r.partial(CASES_4_1[0], st, stage)  # f[taker,c,hold,1]: update cmd
+    r.partial(CASES_4_2[0], st, stage)  # f[taker,c,hold,2]: update state
+    r.partial(CASES_4_3[0], st, stage)  # f[taker,c,hold,3]: update memory
     r.commit(stage)  # memory and outputs of i + 1; new(x) cleared
     yield from r.send(('seq', (('buf', 'cmd'), ('buf', 'state'))))
     r.increment()  # i := i + 1
@@ -402,22 +366,13 @@ def switch_4(st: State, conds: Mapping[str, bool]) -> str | None:
 # ---------------------------------------------------------------- behaviour leave: P^B[taker,c,leave]
 
 CASES_5_1 = (  # leave: update cmd
-    (4, f_5_1_1),  # not new(joints) and not new(offering)
-    (3, f_5_1_1),  # new(joints) and not new(offering)
-    (2, f_5_1_1),  # not new(joints) and new(offering)
-    (1, f_5_1_1),  # new(joints) and new(offering)
+    (1, f_5_1_1),  # any data
 )
 CASES_5_2 = (  # leave: update state
-    (4, f_5_2_1),  # not new(joints) and not new(offering)
-    (3, f_5_2_1),  # new(joints) and not new(offering)
-    (2, f_5_2_1),  # not new(joints) and new(offering)
-    (1, f_5_2_1),  # new(joints) and new(offering)
+    (1, f_5_2_1),  # any data
 )
 CASES_5_3 = (  # leave: update memory
-    (4, f_5_3_1),  # not new(joints) and not new(offering)
-    (3, f_5_3_1),  # new(joints) and not new(offering)
-    (2, f_5_3_1),  # not new(joints) and new(offering)
-    (1, f_5_3_1),  # new(joints) and new(offering)
+    (1, f_5_3_1),  # any data
 )
 CONDITIONS_5 = (('at_place', 'terminal', cond_5_1),)
 
@@ -427,9 +382,9 @@ def iterate_5(r: _Runner) -> _Iteration:
     st = r.state
     mask = r.begin()  # new(x) of the inputs, frozen for the transition function
     stage: dict[str, Any] = {}
-    r.partial(CASES_5_1[mask], st, stage)  # f[taker,c,leave,1]: update cmd
-    r.partial(CASES_5_2[mask], st, stage)  # f[taker,c,leave,2]: update state
-    r.partial(CASES_5_3[mask], st, stage)  # f[taker,c,leave,3]: update memory
+    r.partial(CASES_5_1[0], st, stage)  # f[taker,c,leave,1]: update cmd
+    r.partial(CASES_5_2[0], st, stage)  # f[taker,c,leave,2]: update state
+    r.partial(CASES_5_3[0], st, stage)  # f[taker,c,leave,3]: update memory
     r.commit(stage)  # memory and outputs of i + 1; new(x) cleared
     yield from r.send(('seq', (('buf', 'cmd'), ('buf', 'state'))))
     r.increment()  # i := i + 1

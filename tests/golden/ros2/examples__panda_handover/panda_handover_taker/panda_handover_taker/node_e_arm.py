@@ -140,10 +140,7 @@ CASES_1_1 = (  # track: update torque
     (1, f_1_1_1),  # new(setpoint) and new(state)
 )
 CASES_1_2 = (  # track: update joints
-    (4, f_1_2_1),  # not new(setpoint) and not new(state)
-    (3, f_1_2_1),  # new(setpoint) and not new(state)
-    (2, f_1_2_1),  # not new(setpoint) and new(state)
-    (1, f_1_2_1),  # new(setpoint) and new(state)
+    (1, f_1_2_1),  # any data
 )
 CASES_1_3 = (  # track: update memory
     (4, f_1_3_2),  # not new(setpoint) and not new(state)
@@ -160,7 +157,7 @@ def iterate_1(r: _Runner) -> _Iteration:
     mask = r.begin()  # new(x) of the inputs, frozen for the transition function
     stage: dict[str, Any] = {}
     r.partial(CASES_1_1[mask], st, stage)  # f[taker,arm,track,1]: update torque
-    r.partial(CASES_1_2[mask], st, stage)  # f[taker,arm,track,2]: update joints
+    r.partial(CASES_1_2[0], st, stage)  # f[taker,arm,track,2]: update joints
     r.partial(CASES_1_3[mask], st, stage)  # f[taker,arm,track,3]: update memory
     r.commit(stage)  # memory and outputs of i + 1; new(x) cleared
     yield from r.send(('seq', (('buf', 'torque'), ('buf', 'joints'))))

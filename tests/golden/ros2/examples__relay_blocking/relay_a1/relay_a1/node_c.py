@@ -105,12 +105,10 @@ def cond_2_1(st: State) -> bool:
 # ---------------------------------------------------------------- behaviour up: P^B[1,c,up]
 
 CASES_1_1 = (  # up: update request
-    (2, f_1_1_1),  # not new(reply)
-    (1, f_1_1_1),  # new(reply)
+    (1, f_1_1_1),  # any data
 )
 CASES_1_2 = (  # up: update memory
-    (2, f_1_2_1),  # not new(reply)
-    (1, f_1_2_1),  # new(reply)
+    (1, f_1_2_1),  # any data
 )
 CONDITIONS_1 = (('high', 'terminal', cond_1_1),)
 
@@ -120,8 +118,8 @@ def iterate_1(r: _Runner) -> _Iteration:
     st = r.state
     mask = r.begin()  # new(x) of the inputs, frozen for the transition function
     stage: dict[str, Any] = {}
-    r.partial(CASES_1_1[mask], st, stage)  # f[1,c,up,1]: update request
-    r.partial(CASES_1_2[mask], st, stage)  # f[1,c,up,2]: update memory
+    r.partial(CASES_1_1[0], st, stage)  # f[1,c,up,1]: update request
+    r.partial(CASES_1_2[0], st, stage)  # f[1,c,up,2]: update memory
     r.commit(stage)  # memory and outputs of i + 1; new(x) cleared
     yield from r.send(('buf', 'request'))
     r.increment()  # i := i + 1
@@ -140,12 +138,10 @@ def switch_1(st: State, conds: Mapping[str, bool]) -> str | None:
 # ---------------------------------------------------------------- behaviour down: P^B[1,c,down]
 
 CASES_2_1 = (  # down: update request
-    (2, f_2_1_1),  # not new(reply)
-    (1, f_2_1_1),  # new(reply)
+    (1, f_2_1_1),  # any data
 )
 CASES_2_2 = (  # down: update memory
-    (2, f_2_2_1),  # not new(reply)
-    (1, f_2_2_1),  # new(reply)
+    (1, f_2_2_1),  # any data
 )
 CONDITIONS_2 = (('low', 'terminal', cond_2_1),)
 
@@ -155,8 +151,8 @@ def iterate_2(r: _Runner) -> _Iteration:
     st = r.state
     mask = r.begin()  # new(x) of the inputs, frozen for the transition function
     stage: dict[str, Any] = {}
-    r.partial(CASES_2_1[mask], st, stage)  # f[1,c,down,1]: update request
-    r.partial(CASES_2_2[mask], st, stage)  # f[1,c,down,2]: update memory
+    r.partial(CASES_2_1[0], st, stage)  # f[1,c,down,1]: update request
+    r.partial(CASES_2_2[0], st, stage)  # f[1,c,down,2]: update memory
     r.commit(stage)  # memory and outputs of i + 1; new(x) cleared
     yield from r.send(('buf', 'request'))
     r.increment()  # i := i + 1

@@ -78,8 +78,7 @@ CASES_1_1 = (  # answer: update reply
     (1, f_1_1_1),  # new(request)
 )
 CASES_1_2 = (  # answer: update memory
-    (2, None),  # not new(request)
-    (1, None),  # new(request)
+    (1, None),  # any data
 )
 CONDITIONS_1 = (('never', 'terminal', cond_1_1),)
 
@@ -90,7 +89,7 @@ def iterate_1(r: _Runner) -> _Iteration:
     mask = r.begin()  # new(x) of the inputs, frozen for the transition function
     stage: dict[str, Any] = {}
     r.partial(CASES_1_1[mask], st, stage)  # f[2,c,answer,1]: update reply
-    r.partial(CASES_1_2[mask], st, stage)  # f[2,c,answer,2]: update memory
+    r.partial(CASES_1_2[0], st, stage)  # f[2,c,answer,2]: update memory
     r.commit(stage)  # memory and outputs of i + 1; new(x) cleared
     yield from r.send(('buf', 'reply'))
     r.increment()  # i := i + 1

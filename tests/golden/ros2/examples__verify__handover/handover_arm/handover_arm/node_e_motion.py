@@ -88,22 +88,13 @@ def cond_1_1(st: State) -> bool:
 # ---------------------------------------------------------------- behaviour track: P^B[arm,motion,track]
 
 CASES_1_1 = (  # track: update setpoint
-    (4, f_1_1_1),  # not new(goal) and not new(measured)
-    (3, f_1_1_1),  # new(goal) and not new(measured)
-    (2, f_1_1_1),  # not new(goal) and new(measured)
-    (1, f_1_1_1),  # new(goal) and new(measured)
+    (1, f_1_1_1),  # any data
 )
 CASES_1_2 = (  # track: update tool
-    (4, f_1_2_1),  # not new(goal) and not new(measured)
-    (3, f_1_2_1),  # new(goal) and not new(measured)
-    (2, f_1_2_1),  # not new(goal) and new(measured)
-    (1, f_1_2_1),  # new(goal) and new(measured)
+    (1, f_1_2_1),  # any data
 )
 CASES_1_3 = (  # track: update memory
-    (4, None),  # not new(goal) and not new(measured)
-    (3, None),  # new(goal) and not new(measured)
-    (2, None),  # not new(goal) and new(measured)
-    (1, None),  # new(goal) and new(measured)
+    (1, None),  # any data
 )
 CONDITIONS_1 = (('never', 'terminal', cond_1_1),)
 
@@ -113,9 +104,9 @@ def iterate_1(r: _Runner) -> _Iteration:
     st = r.state
     mask = r.begin()  # new(x) of the inputs, frozen for the transition function
     stage: dict[str, Any] = {}
-    r.partial(CASES_1_1[mask], st, stage)  # f[arm,motion,track,1]: update setpoint
-    r.partial(CASES_1_2[mask], st, stage)  # f[arm,motion,track,2]: update tool
-    r.partial(CASES_1_3[mask], st, stage)  # f[arm,motion,track,3]: update memory
+    r.partial(CASES_1_1[0], st, stage)  # f[arm,motion,track,1]: update setpoint
+    r.partial(CASES_1_2[0], st, stage)  # f[arm,motion,track,2]: update tool
+    r.partial(CASES_1_3[0], st, stage)  # f[arm,motion,track,3]: update memory
     r.commit(stage)  # memory and outputs of i + 1; new(x) cleared
     yield from r.send(('seq', (('buf', 'setpoint'), ('buf', 'tool'))))
     r.increment()  # i := i + 1

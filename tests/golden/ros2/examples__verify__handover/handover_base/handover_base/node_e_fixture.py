@@ -83,22 +83,13 @@ def cond_1_1(st: State) -> bool:
 # ---------------------------------------------------------------- behaviour actuate: P^B[base,fixture,actuate]
 
 CASES_1_1 = (  # actuate: update valve
-    (4, f_1_1_1),  # not new(clamp_cmd) and not new(sensed)
-    (3, f_1_1_1),  # new(clamp_cmd) and not new(sensed)
-    (2, f_1_1_1),  # not new(clamp_cmd) and new(sensed)
-    (1, f_1_1_1),  # new(clamp_cmd) and new(sensed)
+    (1, f_1_1_1),  # any data
 )
 CASES_1_2 = (  # actuate: update closed
-    (4, f_1_2_1),  # not new(clamp_cmd) and not new(sensed)
-    (3, f_1_2_1),  # new(clamp_cmd) and not new(sensed)
-    (2, f_1_2_1),  # not new(clamp_cmd) and new(sensed)
-    (1, f_1_2_1),  # new(clamp_cmd) and new(sensed)
+    (1, f_1_2_1),  # any data
 )
 CASES_1_3 = (  # actuate: update memory
-    (4, None),  # not new(clamp_cmd) and not new(sensed)
-    (3, None),  # new(clamp_cmd) and not new(sensed)
-    (2, None),  # not new(clamp_cmd) and new(sensed)
-    (1, None),  # new(clamp_cmd) and new(sensed)
+    (1, None),  # any data
 )
 CONDITIONS_1 = (('never', 'terminal', cond_1_1),)
 
@@ -108,9 +99,9 @@ def iterate_1(r: _Runner) -> _Iteration:
     st = r.state
     mask = r.begin()  # new(x) of the inputs, frozen for the transition function
     stage: dict[str, Any] = {}
-    r.partial(CASES_1_1[mask], st, stage)  # f[base,fixture,actuate,1]: update valve
-    r.partial(CASES_1_2[mask], st, stage)  # f[base,fixture,actuate,2]: update closed
-    r.partial(CASES_1_3[mask], st, stage)  # f[base,fixture,actuate,3]: update memory
+    r.partial(CASES_1_1[0], st, stage)  # f[base,fixture,actuate,1]: update valve
+    r.partial(CASES_1_2[0], st, stage)  # f[base,fixture,actuate,2]: update closed
+    r.partial(CASES_1_3[0], st, stage)  # f[base,fixture,actuate,3]: update memory
     r.commit(stage)  # memory and outputs of i + 1; new(x) cleared
     yield from r.send(('seq', (('buf', 'valve'), ('buf', 'closed'))))
     r.increment()  # i := i + 1

@@ -238,94 +238,19 @@ def cond_4_1(st: State) -> bool:
 # ---------------------------------------------------------------- behaviour pick: P^B[arm,c,pick]
 
 CASES_1_1 = (  # pick: update goal
-    (16, f_1_1_1),  # not new(tool) and not new(jaw) and not new(part) and not new(clamped)
-    (15, f_1_1_1),  # new(tool) and not new(jaw) and not new(part) and not new(clamped)
-    (14, f_1_1_1),  # not new(tool) and new(jaw) and not new(part) and not new(clamped)
-    (13, f_1_1_1),  # new(tool) and new(jaw) and not new(part) and not new(clamped)
-    (12, f_1_1_1),  # not new(tool) and not new(jaw) and new(part) and not new(clamped)
-    (11, f_1_1_1),  # new(tool) and not new(jaw) and new(part) and not new(clamped)
-    (10, f_1_1_1),  # not new(tool) and new(jaw) and new(part) and not new(clamped)
-    (9, f_1_1_1),  # new(tool) and new(jaw) and new(part) and not new(clamped)
-    (8, f_1_1_1),  # not new(tool) and not new(jaw) and not new(part) and new(clamped)
-    (7, f_1_1_1),  # new(tool) and not new(jaw) and not new(part) and new(clamped)
-    (6, f_1_1_1),  # not new(tool) and new(jaw) and not new(part) and new(clamped)
-    (5, f_1_1_1),  # new(tool) and new(jaw) and not new(part) and new(clamped)
-    (4, f_1_1_1),  # not new(tool) and not new(jaw) and new(part) and new(clamped)
-    (3, f_1_1_1),  # new(tool) and not new(jaw) and new(part) and new(clamped)
-    (2, f_1_1_1),  # not new(tool) and new(jaw) and new(part) and new(clamped)
-    (1, f_1_1_1),  # new(tool) and new(jaw) and new(part) and new(clamped)
+    (1, f_1_1_1),  # any data
 )
 CASES_1_2 = (  # pick: update jaw_cmd
-    (16, f_1_2_1),  # not new(tool) and not new(jaw) and not new(part) and not new(clamped)
-    (15, f_1_2_1),  # new(tool) and not new(jaw) and not new(part) and not new(clamped)
-    (14, f_1_2_1),  # not new(tool) and new(jaw) and not new(part) and not new(clamped)
-    (13, f_1_2_1),  # new(tool) and new(jaw) and not new(part) and not new(clamped)
-    (12, f_1_2_1),  # not new(tool) and not new(jaw) and new(part) and not new(clamped)
-    (11, f_1_2_1),  # new(tool) and not new(jaw) and new(part) and not new(clamped)
-    (10, f_1_2_1),  # not new(tool) and new(jaw) and new(part) and not new(clamped)
-    (9, f_1_2_1),  # new(tool) and new(jaw) and new(part) and not new(clamped)
-    (8, f_1_2_1),  # not new(tool) and not new(jaw) and not new(part) and new(clamped)
-    (7, f_1_2_1),  # new(tool) and not new(jaw) and not new(part) and new(clamped)
-    (6, f_1_2_1),  # not new(tool) and new(jaw) and not new(part) and new(clamped)
-    (5, f_1_2_1),  # new(tool) and new(jaw) and not new(part) and new(clamped)
-    (4, f_1_2_1),  # not new(tool) and not new(jaw) and new(part) and new(clamped)
-    (3, f_1_2_1),  # new(tool) and not new(jaw) and new(part) and new(clamped)
-    (2, f_1_2_1),  # not new(tool) and new(jaw) and new(part) and new(clamped)
-    (1, f_1_2_1),  # new(tool) and new(jaw) and new(part) and new(clamped)
+    (1, f_1_2_1),  # any data
 )
 CASES_1_3 = (  # pick: update part_pose
-    (16, f_1_3_1),  # not new(tool) and not new(jaw) and not new(part) and not new(clamped)
-    (15, f_1_3_1),  # new(tool) and not new(jaw) and not new(part) and not new(clamped)
-    (14, f_1_3_1),  # not new(tool) and new(jaw) and not new(part) and not new(clamped)
-    (13, f_1_3_1),  # new(tool) and new(jaw) and not new(part) and not new(clamped)
-    (12, f_1_3_1),  # not new(tool) and not new(jaw) and new(part) and not new(clamped)
-    (11, f_1_3_1),  # new(tool) and not new(jaw) and new(part) and not new(clamped)
-    (10, f_1_3_1),  # not new(tool) and new(jaw) and new(part) and not new(clamped)
-    (9, f_1_3_1),  # new(tool) and new(jaw) and new(part) and not new(clamped)
-    (8, f_1_3_1),  # not new(tool) and not new(jaw) and not new(part) and new(clamped)
-    (7, f_1_3_1),  # new(tool) and not new(jaw) and not new(part) and new(clamped)
-    (6, f_1_3_1),  # not new(tool) and new(jaw) and not new(part) and new(clamped)
-    (5, f_1_3_1),  # new(tool) and new(jaw) and not new(part) and new(clamped)
-    (4, f_1_3_1),  # not new(tool) and not new(jaw) and new(part) and new(clamped)
-    (3, f_1_3_1),  # new(tool) and not new(jaw) and new(part) and new(clamped)
-    (2, f_1_3_1),  # not new(tool) and new(jaw) and new(part) and new(clamped)
-    (1, f_1_3_1),  # new(tool) and new(jaw) and new(part) and new(clamped)
+    (1, f_1_3_1),  # any data
 )
 CASES_1_4 = (  # pick: update grip_open
-    (16, f_1_4_1),  # not new(tool) and not new(jaw) and not new(part) and not new(clamped)
-    (15, f_1_4_1),  # new(tool) and not new(jaw) and not new(part) and not new(clamped)
-    (14, f_1_4_1),  # not new(tool) and new(jaw) and not new(part) and not new(clamped)
-    (13, f_1_4_1),  # new(tool) and new(jaw) and not new(part) and not new(clamped)
-    (12, f_1_4_1),  # not new(tool) and not new(jaw) and new(part) and not new(clamped)
-    (11, f_1_4_1),  # new(tool) and not new(jaw) and new(part) and not new(clamped)
-    (10, f_1_4_1),  # not new(tool) and new(jaw) and new(part) and not new(clamped)
-    (9, f_1_4_1),  # new(tool) and new(jaw) and new(part) and not new(clamped)
-    (8, f_1_4_1),  # not new(tool) and not new(jaw) and not new(part) and new(clamped)
-    (7, f_1_4_1),  # new(tool) and not new(jaw) and not new(part) and new(clamped)
-    (6, f_1_4_1),  # not new(tool) and new(jaw) and not new(part) and new(clamped)
-    (5, f_1_4_1),  # new(tool) and new(jaw) and not new(part) and new(clamped)
-    (4, f_1_4_1),  # not new(tool) and not new(jaw) and new(part) and new(clamped)
-    (3, f_1_4_1),  # new(tool) and not new(jaw) and new(part) and new(clamped)
-    (2, f_1_4_1),  # not new(tool) and new(jaw) and new(part) and new(clamped)
-    (1, f_1_4_1),  # new(tool) and new(jaw) and new(part) and new(clamped)
+    (1, f_1_4_1),  # any data
 )
 CASES_1_5 = (  # pick: update memory
-    (16, None),  # not new(tool) and not new(jaw) and not new(part) and not new(clamped)
-    (15, None),  # new(tool) and not new(jaw) and not new(part) and not new(clamped)
-    (14, None),  # not new(tool) and new(jaw) and not new(part) and not new(clamped)
-    (13, None),  # new(tool) and new(jaw) and not new(part) and not new(clamped)
-    (12, None),  # not new(tool) and not new(jaw) and new(part) and not new(clamped)
-    (11, None),  # new(tool) and not new(jaw) and new(part) and not new(clamped)
-    (10, None),  # not new(tool) and new(jaw) and new(part) and not new(clamped)
-    (9, None),  # new(tool) and new(jaw) and new(part) and not new(clamped)
-    (8, None),  # not new(tool) and not new(jaw) and not new(part) and new(clamped)
-    (7, None),  # new(tool) and not new(jaw) and not new(part) and new(clamped)
-    (6, None),  # not new(tool) and new(jaw) and not new(part) and new(clamped)
-    (5, None),  # new(tool) and new(jaw) and not new(part) and new(clamped)
-    (4, None),  # not new(tool) and not new(jaw) and new(part) and new(clamped)
-    (3, None),  # new(tool) and not new(jaw) and new(part) and new(clamped)
-    (2, None),  # not new(tool) and new(jaw) and new(part) and new(clamped)
-    (1, None),  # new(tool) and new(jaw) and new(part) and new(clamped)
+    (1, None),  # any data
 )
 CONDITIONS_1 = (('grasped', 'terminal', cond_1_1),)
 
@@ -335,11 +260,11 @@ def iterate_1(r: _Runner) -> _Iteration:
     st = r.state
     mask = r.begin()  # new(x) of the inputs, frozen for the transition function
     stage: dict[str, Any] = {}
-    r.partial(CASES_1_1[mask], st, stage)  # f[arm,c,pick,1]: update goal
-    r.partial(CASES_1_2[mask], st, stage)  # f[arm,c,pick,2]: update jaw_cmd
-    r.partial(CASES_1_3[mask], st, stage)  # f[arm,c,pick,3]: update part_pose
-    r.partial(CASES_1_4[mask], st, stage)  # f[arm,c,pick,4]: update grip_open
-    r.partial(CASES_1_5[mask], st, stage)  # f[arm,c,pick,5]: update memory
+    r.partial(CASES_1_1[0], st, stage)  # f[arm,c,pick,1]: update goal
+    r.partial(CASES_1_2[0], st, stage)  # f[arm,c,pick,2]: update jaw_cmd
+    r.partial(CASES_1_3[0], st, stage)  # f[arm,c,pick,3]: update part_pose
+    r.partial(CASES_1_4[0], st, stage)  # f[arm,c,pick,4]: update grip_open
+    r.partial(CASES_1_5[0], st, stage)  # f[arm,c,pick,5]: update memory
     r.commit(stage)  # memory and outputs of i + 1; new(x) cleared
     yield from r.send(('seq', (('buf', 'goal'), ('buf', 'jaw_cmd'), ('buf', 'part_pose'), ('buf', 'grip_open'))))
     r.increment()  # i := i + 1
@@ -358,94 +283,19 @@ def switch_1(st: State, conds: Mapping[str, bool]) -> str | None:
 # ---------------------------------------------------------------- behaviour present: P^B[arm,c,present]
 
 CASES_2_1 = (  # present: update goal
-    (16, f_2_1_1),  # not new(tool) and not new(jaw) and not new(part) and not new(clamped)
-    (15, f_2_1_1),  # new(tool) and not new(jaw) and not new(part) and not new(clamped)
-    (14, f_2_1_1),  # not new(tool) and new(jaw) and not new(part) and not new(clamped)
-    (13, f_2_1_1),  # new(tool) and new(jaw) and not new(part) and not new(clamped)
-    (12, f_2_1_1),  # not new(tool) and not new(jaw) and new(part) and not new(clamped)
-    (11, f_2_1_1),  # new(tool) and not new(jaw) and new(part) and not new(clamped)
-    (10, f_2_1_1),  # not new(tool) and new(jaw) and new(part) and not new(clamped)
-    (9, f_2_1_1),  # new(tool) and new(jaw) and new(part) and not new(clamped)
-    (8, f_2_1_1),  # not new(tool) and not new(jaw) and not new(part) and new(clamped)
-    (7, f_2_1_1),  # new(tool) and not new(jaw) and not new(part) and new(clamped)
-    (6, f_2_1_1),  # not new(tool) and new(jaw) and not new(part) and new(clamped)
-    (5, f_2_1_1),  # new(tool) and new(jaw) and not new(part) and new(clamped)
-    (4, f_2_1_1),  # not new(tool) and not new(jaw) and new(part) and new(clamped)
-    (3, f_2_1_1),  # new(tool) and not new(jaw) and new(part) and new(clamped)
-    (2, f_2_1_1),  # not new(tool) and new(jaw) and new(part) and new(clamped)
-    (1, f_2_1_1),  # new(tool) and new(jaw) and new(part) and new(clamped)
+    (1, f_2_1_1),  # any data
 )
 CASES_2_2 = (  # present: update jaw_cmd
-    (16, f_2_2_1),  # not new(tool) and not new(jaw) and not new(part) and not new(clamped)
-    (15, f_2_2_1),  # new(tool) and not new(jaw) and not new(part) and not new(clamped)
-    (14, f_2_2_1),  # not new(tool) and new(jaw) and not new(part) and not new(clamped)
-    (13, f_2_2_1),  # new(tool) and new(jaw) and not new(part) and not new(clamped)
-    (12, f_2_2_1),  # not new(tool) and not new(jaw) and new(part) and not new(clamped)
-    (11, f_2_2_1),  # new(tool) and not new(jaw) and new(part) and not new(clamped)
-    (10, f_2_2_1),  # not new(tool) and new(jaw) and new(part) and not new(clamped)
-    (9, f_2_2_1),  # new(tool) and new(jaw) and new(part) and not new(clamped)
-    (8, f_2_2_1),  # not new(tool) and not new(jaw) and not new(part) and new(clamped)
-    (7, f_2_2_1),  # new(tool) and not new(jaw) and not new(part) and new(clamped)
-    (6, f_2_2_1),  # not new(tool) and new(jaw) and not new(part) and new(clamped)
-    (5, f_2_2_1),  # new(tool) and new(jaw) and not new(part) and new(clamped)
-    (4, f_2_2_1),  # not new(tool) and not new(jaw) and new(part) and new(clamped)
-    (3, f_2_2_1),  # new(tool) and not new(jaw) and new(part) and new(clamped)
-    (2, f_2_2_1),  # not new(tool) and new(jaw) and new(part) and new(clamped)
-    (1, f_2_2_1),  # new(tool) and new(jaw) and new(part) and new(clamped)
+    (1, f_2_2_1),  # any data
 )
 CASES_2_3 = (  # present: update part_pose
-    (16, f_2_3_1),  # not new(tool) and not new(jaw) and not new(part) and not new(clamped)
-    (15, f_2_3_1),  # new(tool) and not new(jaw) and not new(part) and not new(clamped)
-    (14, f_2_3_1),  # not new(tool) and new(jaw) and not new(part) and not new(clamped)
-    (13, f_2_3_1),  # new(tool) and new(jaw) and not new(part) and not new(clamped)
-    (12, f_2_3_1),  # not new(tool) and not new(jaw) and new(part) and not new(clamped)
-    (11, f_2_3_1),  # new(tool) and not new(jaw) and new(part) and not new(clamped)
-    (10, f_2_3_1),  # not new(tool) and new(jaw) and new(part) and not new(clamped)
-    (9, f_2_3_1),  # new(tool) and new(jaw) and new(part) and not new(clamped)
-    (8, f_2_3_1),  # not new(tool) and not new(jaw) and not new(part) and new(clamped)
-    (7, f_2_3_1),  # new(tool) and not new(jaw) and not new(part) and new(clamped)
-    (6, f_2_3_1),  # not new(tool) and new(jaw) and not new(part) and new(clamped)
-    (5, f_2_3_1),  # new(tool) and new(jaw) and not new(part) and new(clamped)
-    (4, f_2_3_1),  # not new(tool) and not new(jaw) and new(part) and new(clamped)
-    (3, f_2_3_1),  # new(tool) and not new(jaw) and new(part) and new(clamped)
-    (2, f_2_3_1),  # not new(tool) and new(jaw) and new(part) and new(clamped)
-    (1, f_2_3_1),  # new(tool) and new(jaw) and new(part) and new(clamped)
+    (1, f_2_3_1),  # any data
 )
 CASES_2_4 = (  # present: update grip_open
-    (16, f_2_4_1),  # not new(tool) and not new(jaw) and not new(part) and not new(clamped)
-    (15, f_2_4_1),  # new(tool) and not new(jaw) and not new(part) and not new(clamped)
-    (14, f_2_4_1),  # not new(tool) and new(jaw) and not new(part) and not new(clamped)
-    (13, f_2_4_1),  # new(tool) and new(jaw) and not new(part) and not new(clamped)
-    (12, f_2_4_1),  # not new(tool) and not new(jaw) and new(part) and not new(clamped)
-    (11, f_2_4_1),  # new(tool) and not new(jaw) and new(part) and not new(clamped)
-    (10, f_2_4_1),  # not new(tool) and new(jaw) and new(part) and not new(clamped)
-    (9, f_2_4_1),  # new(tool) and new(jaw) and new(part) and not new(clamped)
-    (8, f_2_4_1),  # not new(tool) and not new(jaw) and not new(part) and new(clamped)
-    (7, f_2_4_1),  # new(tool) and not new(jaw) and not new(part) and new(clamped)
-    (6, f_2_4_1),  # not new(tool) and new(jaw) and not new(part) and new(clamped)
-    (5, f_2_4_1),  # new(tool) and new(jaw) and not new(part) and new(clamped)
-    (4, f_2_4_1),  # not new(tool) and not new(jaw) and new(part) and new(clamped)
-    (3, f_2_4_1),  # new(tool) and not new(jaw) and new(part) and new(clamped)
-    (2, f_2_4_1),  # not new(tool) and new(jaw) and new(part) and new(clamped)
-    (1, f_2_4_1),  # new(tool) and new(jaw) and new(part) and new(clamped)
+    (1, f_2_4_1),  # any data
 )
 CASES_2_5 = (  # present: update memory
-    (16, f_2_5_1),  # not new(tool) and not new(jaw) and not new(part) and not new(clamped)
-    (15, f_2_5_1),  # new(tool) and not new(jaw) and not new(part) and not new(clamped)
-    (14, f_2_5_1),  # not new(tool) and new(jaw) and not new(part) and not new(clamped)
-    (13, f_2_5_1),  # new(tool) and new(jaw) and not new(part) and not new(clamped)
-    (12, f_2_5_1),  # not new(tool) and not new(jaw) and new(part) and not new(clamped)
-    (11, f_2_5_1),  # new(tool) and not new(jaw) and new(part) and not new(clamped)
-    (10, f_2_5_1),  # not new(tool) and new(jaw) and new(part) and not new(clamped)
-    (9, f_2_5_1),  # new(tool) and new(jaw) and new(part) and not new(clamped)
-    (8, f_2_5_1),  # not new(tool) and not new(jaw) and not new(part) and new(clamped)
-    (7, f_2_5_1),  # new(tool) and not new(jaw) and not new(part) and new(clamped)
-    (6, f_2_5_1),  # not new(tool) and new(jaw) and not new(part) and new(clamped)
-    (5, f_2_5_1),  # new(tool) and new(jaw) and not new(part) and new(clamped)
-    (4, f_2_5_1),  # not new(tool) and not new(jaw) and new(part) and new(clamped)
-    (3, f_2_5_1),  # new(tool) and not new(jaw) and new(part) and new(clamped)
-    (2, f_2_5_1),  # not new(tool) and new(jaw) and new(part) and new(clamped)
-    (1, f_2_5_1),  # new(tool) and new(jaw) and new(part) and new(clamped)
+    (1, f_2_5_1),  # any data
 )
 CONDITIONS_2 = (('held', 'terminal', cond_2_1), ('base_late', 'error', cond_2_2))
 
@@ -455,11 +305,11 @@ def iterate_2(r: _Runner) -> _Iteration:
     st = r.state
     mask = r.begin()  # new(x) of the inputs, frozen for the transition function
     stage: dict[str, Any] = {}
-    r.partial(CASES_2_1[mask], st, stage)  # f[arm,c,present,1]: update goal
-    r.partial(CASES_2_2[mask], st, stage)  # f[arm,c,present,2]: update jaw_cmd
-    r.partial(CASES_2_3[mask], st, stage)  # f[arm,c,present,3]: update part_pose
-    r.partial(CASES_2_4[mask], st, stage)  # f[arm,c,present,4]: update grip_open
-    r.partial(CASES_2_5[mask], st, stage)  # f[arm,c,present,5]: update memory
+    r.partial(CASES_2_1[0], st, stage)  # f[arm,c,present,1]: update goal
+    r.partial(CASES_2_2[0], st, stage)  # f[arm,c,present,2]: update jaw_cmd
+    r.partial(CASES_2_3[0], st, stage)  # f[arm,c,present,3]: update part_pose
+    r.partial(CASES_2_4[0], st, stage)  # f[arm,c,present,4]: update grip_open
+    r.partial(CASES_2_5[0], st, stage)  # f[arm,c,present,5]: update memory
     r.commit(stage)  # memory and outputs of i + 1; new(x) cleared
     yield from r.send(('seq', (('buf', 'goal'), ('buf', 'jaw_cmd'), ('buf', 'part_pose'), ('buf', 'grip_open'))))
     r.increment()  # i := i + 1
@@ -478,94 +328,19 @@ def switch_2(st: State, conds: Mapping[str, bool]) -> str | None:
 # ---------------------------------------------------------------- behaviour release: P^B[arm,c,release]
 
 CASES_3_1 = (  # release: update goal
-    (16, None),  # not new(tool) and not new(jaw) and not new(part) and not new(clamped)
-    (15, None),  # new(tool) and not new(jaw) and not new(part) and not new(clamped)
-    (14, None),  # not new(tool) and new(jaw) and not new(part) and not new(clamped)
-    (13, None),  # new(tool) and new(jaw) and not new(part) and not new(clamped)
-    (12, None),  # not new(tool) and not new(jaw) and new(part) and not new(clamped)
-    (11, None),  # new(tool) and not new(jaw) and new(part) and not new(clamped)
-    (10, None),  # not new(tool) and new(jaw) and new(part) and not new(clamped)
-    (9, None),  # new(tool) and new(jaw) and new(part) and not new(clamped)
-    (8, None),  # not new(tool) and not new(jaw) and not new(part) and new(clamped)
-    (7, None),  # new(tool) and not new(jaw) and not new(part) and new(clamped)
-    (6, None),  # not new(tool) and new(jaw) and not new(part) and new(clamped)
-    (5, None),  # new(tool) and new(jaw) and not new(part) and new(clamped)
-    (4, None),  # not new(tool) and not new(jaw) and new(part) and new(clamped)
-    (3, None),  # new(tool) and not new(jaw) and new(part) and new(clamped)
-    (2, None),  # not new(tool) and new(jaw) and new(part) and new(clamped)
-    (1, None),  # new(tool) and new(jaw) and new(part) and new(clamped)
+    (1, None),  # any data
 )
 CASES_3_2 = (  # release: update jaw_cmd
-    (16, f_3_2_1),  # not new(tool) and not new(jaw) and not new(part) and not new(clamped)
-    (15, f_3_2_1),  # new(tool) and not new(jaw) and not new(part) and not new(clamped)
-    (14, f_3_2_1),  # not new(tool) and new(jaw) and not new(part) and not new(clamped)
-    (13, f_3_2_1),  # new(tool) and new(jaw) and not new(part) and not new(clamped)
-    (12, f_3_2_1),  # not new(tool) and not new(jaw) and new(part) and not new(clamped)
-    (11, f_3_2_1),  # new(tool) and not new(jaw) and new(part) and not new(clamped)
-    (10, f_3_2_1),  # not new(tool) and new(jaw) and new(part) and not new(clamped)
-    (9, f_3_2_1),  # new(tool) and new(jaw) and new(part) and not new(clamped)
-    (8, f_3_2_1),  # not new(tool) and not new(jaw) and not new(part) and new(clamped)
-    (7, f_3_2_1),  # new(tool) and not new(jaw) and not new(part) and new(clamped)
-    (6, f_3_2_1),  # not new(tool) and new(jaw) and not new(part) and new(clamped)
-    (5, f_3_2_1),  # new(tool) and new(jaw) and not new(part) and new(clamped)
-    (4, f_3_2_1),  # not new(tool) and not new(jaw) and new(part) and new(clamped)
-    (3, f_3_2_1),  # new(tool) and not new(jaw) and new(part) and new(clamped)
-    (2, f_3_2_1),  # not new(tool) and new(jaw) and new(part) and new(clamped)
-    (1, f_3_2_1),  # new(tool) and new(jaw) and new(part) and new(clamped)
+    (1, f_3_2_1),  # any data
 )
 CASES_3_3 = (  # release: update part_pose
-    (16, f_3_3_1),  # not new(tool) and not new(jaw) and not new(part) and not new(clamped)
-    (15, f_3_3_1),  # new(tool) and not new(jaw) and not new(part) and not new(clamped)
-    (14, f_3_3_1),  # not new(tool) and new(jaw) and not new(part) and not new(clamped)
-    (13, f_3_3_1),  # new(tool) and new(jaw) and not new(part) and not new(clamped)
-    (12, f_3_3_1),  # not new(tool) and not new(jaw) and new(part) and not new(clamped)
-    (11, f_3_3_1),  # new(tool) and not new(jaw) and new(part) and not new(clamped)
-    (10, f_3_3_1),  # not new(tool) and new(jaw) and new(part) and not new(clamped)
-    (9, f_3_3_1),  # new(tool) and new(jaw) and new(part) and not new(clamped)
-    (8, f_3_3_1),  # not new(tool) and not new(jaw) and not new(part) and new(clamped)
-    (7, f_3_3_1),  # new(tool) and not new(jaw) and not new(part) and new(clamped)
-    (6, f_3_3_1),  # not new(tool) and new(jaw) and not new(part) and new(clamped)
-    (5, f_3_3_1),  # new(tool) and new(jaw) and not new(part) and new(clamped)
-    (4, f_3_3_1),  # not new(tool) and not new(jaw) and new(part) and new(clamped)
-    (3, f_3_3_1),  # new(tool) and not new(jaw) and new(part) and new(clamped)
-    (2, f_3_3_1),  # not new(tool) and new(jaw) and new(part) and new(clamped)
-    (1, f_3_3_1),  # new(tool) and new(jaw) and new(part) and new(clamped)
+    (1, f_3_3_1),  # any data
 )
 CASES_3_4 = (  # release: update grip_open
-    (16, f_3_4_1),  # not new(tool) and not new(jaw) and not new(part) and not new(clamped)
-    (15, f_3_4_1),  # new(tool) and not new(jaw) and not new(part) and not new(clamped)
-    (14, f_3_4_1),  # not new(tool) and new(jaw) and not new(part) and not new(clamped)
-    (13, f_3_4_1),  # new(tool) and new(jaw) and not new(part) and not new(clamped)
-    (12, f_3_4_1),  # not new(tool) and not new(jaw) and new(part) and not new(clamped)
-    (11, f_3_4_1),  # new(tool) and not new(jaw) and new(part) and not new(clamped)
-    (10, f_3_4_1),  # not new(tool) and new(jaw) and new(part) and not new(clamped)
-    (9, f_3_4_1),  # new(tool) and new(jaw) and new(part) and not new(clamped)
-    (8, f_3_4_1),  # not new(tool) and not new(jaw) and not new(part) and new(clamped)
-    (7, f_3_4_1),  # new(tool) and not new(jaw) and not new(part) and new(clamped)
-    (6, f_3_4_1),  # not new(tool) and new(jaw) and not new(part) and new(clamped)
-    (5, f_3_4_1),  # new(tool) and new(jaw) and not new(part) and new(clamped)
-    (4, f_3_4_1),  # not new(tool) and not new(jaw) and new(part) and new(clamped)
-    (3, f_3_4_1),  # new(tool) and not new(jaw) and new(part) and new(clamped)
-    (2, f_3_4_1),  # not new(tool) and new(jaw) and new(part) and new(clamped)
-    (1, f_3_4_1),  # new(tool) and new(jaw) and new(part) and new(clamped)
+    (1, f_3_4_1),  # any data
 )
 CASES_3_5 = (  # release: update memory
-    (16, None),  # not new(tool) and not new(jaw) and not new(part) and not new(clamped)
-    (15, None),  # new(tool) and not new(jaw) and not new(part) and not new(clamped)
-    (14, None),  # not new(tool) and new(jaw) and not new(part) and not new(clamped)
-    (13, None),  # new(tool) and new(jaw) and not new(part) and not new(clamped)
-    (12, None),  # not new(tool) and not new(jaw) and new(part) and not new(clamped)
-    (11, None),  # new(tool) and not new(jaw) and new(part) and not new(clamped)
-    (10, None),  # not new(tool) and new(jaw) and new(part) and not new(clamped)
-    (9, None),  # new(tool) and new(jaw) and new(part) and not new(clamped)
-    (8, None),  # not new(tool) and not new(jaw) and not new(part) and new(clamped)
-    (7, None),  # new(tool) and not new(jaw) and not new(part) and new(clamped)
-    (6, None),  # not new(tool) and new(jaw) and not new(part) and new(clamped)
-    (5, None),  # new(tool) and new(jaw) and not new(part) and new(clamped)
-    (4, None),  # not new(tool) and not new(jaw) and new(part) and new(clamped)
-    (3, None),  # new(tool) and not new(jaw) and new(part) and new(clamped)
-    (2, None),  # not new(tool) and new(jaw) and new(part) and new(clamped)
-    (1, None),  # new(tool) and new(jaw) and new(part) and new(clamped)
+    (1, None),  # any data
 )
 CONDITIONS_3 = (('let_go', 'terminal', cond_3_1),)
 
@@ -575,11 +350,11 @@ def iterate_3(r: _Runner) -> _Iteration:
     st = r.state
     mask = r.begin()  # new(x) of the inputs, frozen for the transition function
     stage: dict[str, Any] = {}
-    r.partial(CASES_3_1[mask], st, stage)  # f[arm,c,release,1]: update goal
-    r.partial(CASES_3_2[mask], st, stage)  # f[arm,c,release,2]: update jaw_cmd
-    r.partial(CASES_3_3[mask], st, stage)  # f[arm,c,release,3]: update part_pose
-    r.partial(CASES_3_4[mask], st, stage)  # f[arm,c,release,4]: update grip_open
-    r.partial(CASES_3_5[mask], st, stage)  # f[arm,c,release,5]: update memory
+    r.partial(CASES_3_1[0], st, stage)  # f[arm,c,release,1]: update goal
+    r.partial(CASES_3_2[0], st, stage)  # f[arm,c,release,2]: update jaw_cmd
+    r.partial(CASES_3_3[0], st, stage)  # f[arm,c,release,3]: update part_pose
+    r.partial(CASES_3_4[0], st, stage)  # f[arm,c,release,4]: update grip_open
+    r.partial(CASES_3_5[0], st, stage)  # f[arm,c,release,5]: update memory
     r.commit(stage)  # memory and outputs of i + 1; new(x) cleared
     yield from r.send(('seq', (('buf', 'goal'), ('buf', 'jaw_cmd'), ('buf', 'part_pose'), ('buf', 'grip_open'))))
     r.increment()  # i := i + 1
@@ -598,94 +373,19 @@ def switch_3(st: State, conds: Mapping[str, bool]) -> str | None:
 # ---------------------------------------------------------------- behaviour retreat: P^B[arm,c,retreat]
 
 CASES_4_1 = (  # retreat: update goal
-    (16, f_4_1_1),  # not new(tool) and not new(jaw) and not new(part) and not new(clamped)
-    (15, f_4_1_1),  # new(tool) and not new(jaw) and not new(part) and not new(clamped)
-    (14, f_4_1_1),  # not new(tool) and new(jaw) and not new(part) and not new(clamped)
-    (13, f_4_1_1),  # new(tool) and new(jaw) and not new(part) and not new(clamped)
-    (12, f_4_1_1),  # not new(tool) and not new(jaw) and new(part) and not new(clamped)
-    (11, f_4_1_1),  # new(tool) and not new(jaw) and new(part) and not new(clamped)
-    (10, f_4_1_1),  # not new(tool) and new(jaw) and new(part) and not new(clamped)
-    (9, f_4_1_1),  # new(tool) and new(jaw) and new(part) and not new(clamped)
-    (8, f_4_1_1),  # not new(tool) and not new(jaw) and not new(part) and new(clamped)
-    (7, f_4_1_1),  # new(tool) and not new(jaw) and not new(part) and new(clamped)
-    (6, f_4_1_1),  # not new(tool) and new(jaw) and not new(part) and new(clamped)
-    (5, f_4_1_1),  # new(tool) and new(jaw) and not new(part) and new(clamped)
-    (4, f_4_1_1),  # not new(tool) and not new(jaw) and new(part) and new(clamped)
-    (3, f_4_1_1),  # new(tool) and not new(jaw) and new(part) and new(clamped)
-    (2, f_4_1_1),  # not new(tool) and new(jaw) and new(part) and new(clamped)
-    (1, f_4_1_1),  # new(tool) and new(jaw) and new(part) and new(clamped)
+    (1, f_4_1_1),  # any data
 )
 CASES_4_2 = (  # retreat: update jaw_cmd
-    (16, None),  # not new(tool) and not new(jaw) and not new(part) and not new(clamped)
-    (15, None),  # new(tool) and not new(jaw) and not new(part) and not new(clamped)
-    (14, None),  # not new(tool) and new(jaw) and not new(part) and not new(clamped)
-    (13, None),  # new(tool) and new(jaw) and not new(part) and not new(clamped)
-    (12, None),  # not new(tool) and not new(jaw) and new(part) and not new(clamped)
-    (11, None),  # new(tool) and not new(jaw) and new(part) and not new(clamped)
-    (10, None),  # not new(tool) and new(jaw) and new(part) and not new(clamped)
-    (9, None),  # new(tool) and new(jaw) and new(part) and not new(clamped)
-    (8, None),  # not new(tool) and not new(jaw) and not new(part) and new(clamped)
-    (7, None),  # new(tool) and not new(jaw) and not new(part) and new(clamped)
-    (6, None),  # not new(tool) and new(jaw) and not new(part) and new(clamped)
-    (5, None),  # new(tool) and new(jaw) and not new(part) and new(clamped)
-    (4, None),  # not new(tool) and not new(jaw) and new(part) and new(clamped)
-    (3, None),  # new(tool) and not new(jaw) and new(part) and new(clamped)
-    (2, None),  # not new(tool) and new(jaw) and new(part) and new(clamped)
-    (1, None),  # new(tool) and new(jaw) and new(part) and new(clamped)
+    (1, None),  # any data
 )
 CASES_4_3 = (  # retreat: update part_pose
-    (16, f_4_3_1),  # not new(tool) and not new(jaw) and not new(part) and not new(clamped)
-    (15, f_4_3_1),  # new(tool) and not new(jaw) and not new(part) and not new(clamped)
-    (14, f_4_3_1),  # not new(tool) and new(jaw) and not new(part) and not new(clamped)
-    (13, f_4_3_1),  # new(tool) and new(jaw) and not new(part) and not new(clamped)
-    (12, f_4_3_1),  # not new(tool) and not new(jaw) and new(part) and not new(clamped)
-    (11, f_4_3_1),  # new(tool) and not new(jaw) and new(part) and not new(clamped)
-    (10, f_4_3_1),  # not new(tool) and new(jaw) and new(part) and not new(clamped)
-    (9, f_4_3_1),  # new(tool) and new(jaw) and new(part) and not new(clamped)
-    (8, f_4_3_1),  # not new(tool) and not new(jaw) and not new(part) and new(clamped)
-    (7, f_4_3_1),  # new(tool) and not new(jaw) and not new(part) and new(clamped)
-    (6, f_4_3_1),  # not new(tool) and new(jaw) and not new(part) and new(clamped)
-    (5, f_4_3_1),  # new(tool) and new(jaw) and not new(part) and new(clamped)
-    (4, f_4_3_1),  # not new(tool) and not new(jaw) and new(part) and new(clamped)
-    (3, f_4_3_1),  # new(tool) and not new(jaw) and new(part) and new(clamped)
-    (2, f_4_3_1),  # not new(tool) and new(jaw) and new(part) and new(clamped)
-    (1, f_4_3_1),  # new(tool) and new(jaw) and new(part) and new(clamped)
+    (1, f_4_3_1),  # any data
 )
 CASES_4_4 = (  # retreat: update grip_open
-    (16, f_4_4_1),  # not new(tool) and not new(jaw) and not new(part) and not new(clamped)
-    (15, f_4_4_1),  # new(tool) and not new(jaw) and not new(part) and not new(clamped)
-    (14, f_4_4_1),  # not new(tool) and new(jaw) and not new(part) and not new(clamped)
-    (13, f_4_4_1),  # new(tool) and new(jaw) and not new(part) and not new(clamped)
-    (12, f_4_4_1),  # not new(tool) and not new(jaw) and new(part) and not new(clamped)
-    (11, f_4_4_1),  # new(tool) and not new(jaw) and new(part) and not new(clamped)
-    (10, f_4_4_1),  # not new(tool) and new(jaw) and new(part) and not new(clamped)
-    (9, f_4_4_1),  # new(tool) and new(jaw) and new(part) and not new(clamped)
-    (8, f_4_4_1),  # not new(tool) and not new(jaw) and not new(part) and new(clamped)
-    (7, f_4_4_1),  # new(tool) and not new(jaw) and not new(part) and new(clamped)
-    (6, f_4_4_1),  # not new(tool) and new(jaw) and not new(part) and new(clamped)
-    (5, f_4_4_1),  # new(tool) and new(jaw) and not new(part) and new(clamped)
-    (4, f_4_4_1),  # not new(tool) and not new(jaw) and new(part) and new(clamped)
-    (3, f_4_4_1),  # new(tool) and not new(jaw) and new(part) and new(clamped)
-    (2, f_4_4_1),  # not new(tool) and new(jaw) and new(part) and new(clamped)
-    (1, f_4_4_1),  # new(tool) and new(jaw) and new(part) and new(clamped)
+    (1, f_4_4_1),  # any data
 )
 CASES_4_5 = (  # retreat: update memory
-    (16, f_4_5_1),  # not new(tool) and not new(jaw) and not new(part) and not new(clamped)
-    (15, f_4_5_1),  # new(tool) and not new(jaw) and not new(part) and not new(clamped)
-    (14, f_4_5_1),  # not new(tool) and new(jaw) and not new(part) and not new(clamped)
-    (13, f_4_5_1),  # new(tool) and new(jaw) and not new(part) and not new(clamped)
-    (12, f_4_5_1),  # not new(tool) and not new(jaw) and new(part) and not new(clamped)
-    (11, f_4_5_1),  # new(tool) and not new(jaw) and new(part) and not new(clamped)
-    (10, f_4_5_1),  # not new(tool) and new(jaw) and new(part) and not new(clamped)
-    (9, f_4_5_1),  # new(tool) and new(jaw) and new(part) and not new(clamped)
-    (8, f_4_5_1),  # not new(tool) and not new(jaw) and not new(part) and new(clamped)
-    (7, f_4_5_1),  # new(tool) and not new(jaw) and not new(part) and new(clamped)
-    (6, f_4_5_1),  # not new(tool) and new(jaw) and not new(part) and new(clamped)
-    (5, f_4_5_1),  # new(tool) and new(jaw) and not new(part) and new(clamped)
-    (4, f_4_5_1),  # not new(tool) and not new(jaw) and new(part) and new(clamped)
-    (3, f_4_5_1),  # new(tool) and not new(jaw) and new(part) and new(clamped)
-    (2, f_4_5_1),  # not new(tool) and new(jaw) and new(part) and new(clamped)
-    (1, f_4_5_1),  # new(tool) and new(jaw) and new(part) and new(clamped)
+    (1, f_4_5_1),  # any data
 )
 CONDITIONS_4 = (('at_home', 'terminal', cond_4_1),)
 
@@ -695,11 +395,11 @@ def iterate_4(r: _Runner) -> _Iteration:
     st = r.state
     mask = r.begin()  # new(x) of the inputs, frozen for the transition function
     stage: dict[str, Any] = {}
-    r.partial(CASES_4_1[mask], st, stage)  # f[arm,c,retreat,1]: update goal
-    r.partial(CASES_4_2[mask], st, stage)  # f[arm,c,retreat,2]: update jaw_cmd
-    r.partial(CASES_4_3[mask], st, stage)  # f[arm,c,retreat,3]: update part_pose
-    r.partial(CASES_4_4[mask], st, stage)  # f[arm,c,retreat,4]: update grip_open
-    r.partial(CASES_4_5[mask], st, stage)  # f[arm,c,retreat,5]: update memory
+    r.partial(CASES_4_1[0], st, stage)  # f[arm,c,retreat,1]: update goal
+    r.partial(CASES_4_2[0], st, stage)  # f[arm,c,retreat,2]: update jaw_cmd
+    r.partial(CASES_4_3[0], st, stage)  # f[arm,c,retreat,3]: update part_pose
+    r.partial(CASES_4_4[0], st, stage)  # f[arm,c,retreat,4]: update grip_open
+    r.partial(CASES_4_5[0], st, stage)  # f[arm,c,retreat,5]: update memory
     r.commit(stage)  # memory and outputs of i + 1; new(x) cleared
     yield from r.send(('seq', (('buf', 'goal'), ('buf', 'jaw_cmd'), ('buf', 'part_pose'), ('buf', 'grip_open'))))
     r.increment()  # i := i + 1

@@ -86,22 +86,13 @@ def cond_1_1(st: State) -> bool:
 # ---------------------------------------------------------------- behaviour drive: P^B[arm,hand,drive]
 
 CASES_1_1 = (  # drive: update target_width
-    (4, f_1_1_1),  # not new(jaw_cmd) and not new(width)
-    (3, f_1_1_1),  # new(jaw_cmd) and not new(width)
-    (2, f_1_1_1),  # not new(jaw_cmd) and new(width)
-    (1, f_1_1_1),  # new(jaw_cmd) and new(width)
+    (1, f_1_1_1),  # any data
 )
 CASES_1_2 = (  # drive: update jaw
-    (4, f_1_2_1),  # not new(jaw_cmd) and not new(width)
-    (3, f_1_2_1),  # new(jaw_cmd) and not new(width)
-    (2, f_1_2_1),  # not new(jaw_cmd) and new(width)
-    (1, f_1_2_1),  # new(jaw_cmd) and new(width)
+    (1, f_1_2_1),  # any data
 )
 CASES_1_3 = (  # drive: update memory
-    (4, None),  # not new(jaw_cmd) and not new(width)
-    (3, None),  # new(jaw_cmd) and not new(width)
-    (2, None),  # not new(jaw_cmd) and new(width)
-    (1, None),  # new(jaw_cmd) and new(width)
+    (1, None),  # any data
 )
 CONDITIONS_1 = (('never', 'terminal', cond_1_1),)
 
@@ -111,9 +102,9 @@ def iterate_1(r: _Runner) -> _Iteration:
     st = r.state
     mask = r.begin()  # new(x) of the inputs, frozen for the transition function
     stage: dict[str, Any] = {}
-    r.partial(CASES_1_1[mask], st, stage)  # f[arm,hand,drive,1]: update target_width
-    r.partial(CASES_1_2[mask], st, stage)  # f[arm,hand,drive,2]: update jaw
-    r.partial(CASES_1_3[mask], st, stage)  # f[arm,hand,drive,3]: update memory
+    r.partial(CASES_1_1[0], st, stage)  # f[arm,hand,drive,1]: update target_width
+    r.partial(CASES_1_2[0], st, stage)  # f[arm,hand,drive,2]: update jaw
+    r.partial(CASES_1_3[0], st, stage)  # f[arm,hand,drive,3]: update memory
     r.commit(stage)  # memory and outputs of i + 1; new(x) cleared
     yield from r.send(('seq', (('buf', 'target_width'), ('buf', 'jaw'))))
     r.increment()  # i := i + 1

@@ -79,12 +79,10 @@ def cond_1_1(st: State) -> bool:
 # ---------------------------------------------------------------- behaviour locate: P^B[arm,vision,locate]
 
 CASES_1_1 = (  # locate: update part
-    (2, f_1_1_1),  # not new(detection)
-    (1, f_1_1_1),  # new(detection)
+    (1, f_1_1_1),  # any data
 )
 CASES_1_2 = (  # locate: update memory
-    (2, None),  # not new(detection)
-    (1, None),  # new(detection)
+    (1, None),  # any data
 )
 CONDITIONS_1 = (('never', 'terminal', cond_1_1),)
 
@@ -94,8 +92,8 @@ def iterate_1(r: _Runner) -> _Iteration:
     st = r.state
     mask = r.begin()  # new(x) of the inputs, frozen for the transition function
     stage: dict[str, Any] = {}
-    r.partial(CASES_1_1[mask], st, stage)  # f[arm,vision,locate,1]: update part
-    r.partial(CASES_1_2[mask], st, stage)  # f[arm,vision,locate,2]: update memory
+    r.partial(CASES_1_1[0], st, stage)  # f[arm,vision,locate,1]: update part
+    r.partial(CASES_1_2[0], st, stage)  # f[arm,vision,locate,2]: update memory
     r.commit(stage)  # memory and outputs of i + 1; new(x) cleared
     yield from r.send(('buf', 'part'))
     r.increment()  # i := i + 1

@@ -206,76 +206,16 @@ def cond_4_1(st: State) -> bool:
 # ---------------------------------------------------------------- behaviour dock: P^B[base,c,dock]
 
 CASES_1_1 = (  # dock: update target
-    (16, f_1_1_1),  # not new(odom) and not new(closed) and not new(part_pose) and not new(grip_open)
-    (15, f_1_1_1),  # new(odom) and not new(closed) and not new(part_pose) and not new(grip_open)
-    (14, f_1_1_1),  # not new(odom) and new(closed) and not new(part_pose) and not new(grip_open)
-    (13, f_1_1_1),  # new(odom) and new(closed) and not new(part_pose) and not new(grip_open)
-    (12, f_1_1_1),  # not new(odom) and not new(closed) and new(part_pose) and not new(grip_open)
-    (11, f_1_1_1),  # new(odom) and not new(closed) and new(part_pose) and not new(grip_open)
-    (10, f_1_1_1),  # not new(odom) and new(closed) and new(part_pose) and not new(grip_open)
-    (9, f_1_1_1),  # new(odom) and new(closed) and new(part_pose) and not new(grip_open)
-    (8, f_1_1_1),  # not new(odom) and not new(closed) and not new(part_pose) and new(grip_open)
-    (7, f_1_1_1),  # new(odom) and not new(closed) and not new(part_pose) and new(grip_open)
-    (6, f_1_1_1),  # not new(odom) and new(closed) and not new(part_pose) and new(grip_open)
-    (5, f_1_1_1),  # new(odom) and new(closed) and not new(part_pose) and new(grip_open)
-    (4, f_1_1_1),  # not new(odom) and not new(closed) and new(part_pose) and new(grip_open)
-    (3, f_1_1_1),  # new(odom) and not new(closed) and new(part_pose) and new(grip_open)
-    (2, f_1_1_1),  # not new(odom) and new(closed) and new(part_pose) and new(grip_open)
-    (1, f_1_1_1),  # new(odom) and new(closed) and new(part_pose) and new(grip_open)
+    (1, f_1_1_1),  # any data
 )
 CASES_1_2 = (  # dock: update clamp_cmd
-    (16, f_1_2_1),  # not new(odom) and not new(closed) and not new(part_pose) and not new(grip_open)
-    (15, f_1_2_1),  # new(odom) and not new(closed) and not new(part_pose) and not new(grip_open)
-    (14, f_1_2_1),  # not new(odom) and new(closed) and not new(part_pose) and not new(grip_open)
-    (13, f_1_2_1),  # new(odom) and new(closed) and not new(part_pose) and not new(grip_open)
-    (12, f_1_2_1),  # not new(odom) and not new(closed) and new(part_pose) and not new(grip_open)
-    (11, f_1_2_1),  # new(odom) and not new(closed) and new(part_pose) and not new(grip_open)
-    (10, f_1_2_1),  # not new(odom) and new(closed) and new(part_pose) and not new(grip_open)
-    (9, f_1_2_1),  # new(odom) and new(closed) and new(part_pose) and not new(grip_open)
-    (8, f_1_2_1),  # not new(odom) and not new(closed) and not new(part_pose) and new(grip_open)
-    (7, f_1_2_1),  # new(odom) and not new(closed) and not new(part_pose) and new(grip_open)
-    (6, f_1_2_1),  # not new(odom) and new(closed) and not new(part_pose) and new(grip_open)
-    (5, f_1_2_1),  # new(odom) and new(closed) and not new(part_pose) and new(grip_open)
-    (4, f_1_2_1),  # not new(odom) and not new(closed) and new(part_pose) and new(grip_open)
-    (3, f_1_2_1),  # new(odom) and not new(closed) and new(part_pose) and new(grip_open)
-    (2, f_1_2_1),  # not new(odom) and new(closed) and new(part_pose) and new(grip_open)
-    (1, f_1_2_1),  # new(odom) and new(closed) and new(part_pose) and new(grip_open)
+    (1, f_1_2_1),  # any data
 )
 CASES_1_3 = (  # dock: update clamped
-    (16, f_1_3_1),  # not new(odom) and not new(closed) and not new(part_pose) and not new(grip_open)
-    (15, f_1_3_1),  # new(odom) and not new(closed) and not new(part_pose) and not new(grip_open)
-    (14, f_1_3_1),  # not new(odom) and new(closed) and not new(part_pose) and not new(grip_open)
-    (13, f_1_3_1),  # new(odom) and new(closed) and not new(part_pose) and not new(grip_open)
-    (12, f_1_3_1),  # not new(odom) and not new(closed) and new(part_pose) and not new(grip_open)
-    (11, f_1_3_1),  # new(odom) and not new(closed) and new(part_pose) and not new(grip_open)
-    (10, f_1_3_1),  # not new(odom) and new(closed) and new(part_pose) and not new(grip_open)
-    (9, f_1_3_1),  # new(odom) and new(closed) and new(part_pose) and not new(grip_open)
-    (8, f_1_3_1),  # not new(odom) and not new(closed) and not new(part_pose) and new(grip_open)
-    (7, f_1_3_1),  # new(odom) and not new(closed) and not new(part_pose) and new(grip_open)
-    (6, f_1_3_1),  # not new(odom) and new(closed) and not new(part_pose) and new(grip_open)
-    (5, f_1_3_1),  # new(odom) and new(closed) and not new(part_pose) and new(grip_open)
-    (4, f_1_3_1),  # not new(odom) and not new(closed) and new(part_pose) and new(grip_open)
-    (3, f_1_3_1),  # new(odom) and not new(closed) and new(part_pose) and new(grip_open)
-    (2, f_1_3_1),  # not new(odom) and new(closed) and new(part_pose) and new(grip_open)
-    (1, f_1_3_1),  # new(odom) and new(closed) and new(part_pose) and new(grip_open)
+    (1, f_1_3_1),  # any data
 )
 CASES_1_4 = (  # dock: update memory
-    (16, f_1_4_1),  # not new(odom) and not new(closed) and not new(part_pose) and not new(grip_open)
-    (15, f_1_4_1),  # new(odom) and not new(closed) and not new(part_pose) and not new(grip_open)
-    (14, f_1_4_1),  # not new(odom) and new(closed) and not new(part_pose) and not new(grip_open)
-    (13, f_1_4_1),  # new(odom) and new(closed) and not new(part_pose) and not new(grip_open)
-    (12, f_1_4_1),  # not new(odom) and not new(closed) and new(part_pose) and not new(grip_open)
-    (11, f_1_4_1),  # new(odom) and not new(closed) and new(part_pose) and not new(grip_open)
-    (10, f_1_4_1),  # not new(odom) and new(closed) and new(part_pose) and not new(grip_open)
-    (9, f_1_4_1),  # new(odom) and new(closed) and new(part_pose) and not new(grip_open)
-    (8, f_1_4_1),  # not new(odom) and not new(closed) and not new(part_pose) and new(grip_open)
-    (7, f_1_4_1),  # new(odom) and not new(closed) and not new(part_pose) and new(grip_open)
-    (6, f_1_4_1),  # not new(odom) and new(closed) and not new(part_pose) and new(grip_open)
-    (5, f_1_4_1),  # new(odom) and new(closed) and not new(part_pose) and new(grip_open)
-    (4, f_1_4_1),  # not new(odom) and not new(closed) and new(part_pose) and new(grip_open)
-    (3, f_1_4_1),  # new(odom) and not new(closed) and new(part_pose) and new(grip_open)
-    (2, f_1_4_1),  # not new(odom) and new(closed) and new(part_pose) and new(grip_open)
-    (1, f_1_4_1),  # new(odom) and new(closed) and new(part_pose) and new(grip_open)
+    (1, f_1_4_1),  # any data
 )
 CONDITIONS_1 = (('docked', 'terminal', cond_1_1),)
 
@@ -285,10 +225,10 @@ def iterate_1(r: _Runner) -> _Iteration:
     st = r.state
     mask = r.begin()  # new(x) of the inputs, frozen for the transition function
     stage: dict[str, Any] = {}
-    r.partial(CASES_1_1[mask], st, stage)  # f[base,c,dock,1]: update target
-    r.partial(CASES_1_2[mask], st, stage)  # f[base,c,dock,2]: update clamp_cmd
-    r.partial(CASES_1_3[mask], st, stage)  # f[base,c,dock,3]: update clamped
-    r.partial(CASES_1_4[mask], st, stage)  # f[base,c,dock,4]: update memory
+    r.partial(CASES_1_1[0], st, stage)  # f[base,c,dock,1]: update target
+    r.partial(CASES_1_2[0], st, stage)  # f[base,c,dock,2]: update clamp_cmd
+    r.partial(CASES_1_3[0], st, stage)  # f[base,c,dock,3]: update clamped
+    r.partial(CASES_1_4[0], st, stage)  # f[base,c,dock,4]: update memory
     r.commit(stage)  # memory and outputs of i + 1; new(x) cleared
     yield from r.send(('seq', (('buf', 'target'), ('buf', 'clamp_cmd'), ('buf', 'clamped'))))
     r.increment()  # i := i + 1
@@ -307,76 +247,16 @@ def switch_1(st: State, conds: Mapping[str, bool]) -> str | None:
 # ---------------------------------------------------------------- behaviour clamp: P^B[base,c,clamp]
 
 CASES_2_1 = (  # clamp: update target
-    (16, None),  # not new(odom) and not new(closed) and not new(part_pose) and not new(grip_open)
-    (15, None),  # new(odom) and not new(closed) and not new(part_pose) and not new(grip_open)
-    (14, None),  # not new(odom) and new(closed) and not new(part_pose) and not new(grip_open)
-    (13, None),  # new(odom) and new(closed) and not new(part_pose) and not new(grip_open)
-    (12, None),  # not new(odom) and not new(closed) and new(part_pose) and not new(grip_open)
-    (11, None),  # new(odom) and not new(closed) and new(part_pose) and not new(grip_open)
-    (10, None),  # not new(odom) and new(closed) and new(part_pose) and not new(grip_open)
-    (9, None),  # new(odom) and new(closed) and new(part_pose) and not new(grip_open)
-    (8, None),  # not new(odom) and not new(closed) and not new(part_pose) and new(grip_open)
-    (7, None),  # new(odom) and not new(closed) and not new(part_pose) and new(grip_open)
-    (6, None),  # not new(odom) and new(closed) and not new(part_pose) and new(grip_open)
-    (5, None),  # new(odom) and new(closed) and not new(part_pose) and new(grip_open)
-    (4, None),  # not new(odom) and not new(closed) and new(part_pose) and new(grip_open)
-    (3, None),  # new(odom) and not new(closed) and new(part_pose) and new(grip_open)
-    (2, None),  # not new(odom) and new(closed) and new(part_pose) and new(grip_open)
-    (1, None),  # new(odom) and new(closed) and new(part_pose) and new(grip_open)
+    (1, None),  # any data
 )
 CASES_2_2 = (  # clamp: update clamp_cmd
-    (16, f_2_2_1),  # not new(odom) and not new(closed) and not new(part_pose) and not new(grip_open)
-    (15, f_2_2_1),  # new(odom) and not new(closed) and not new(part_pose) and not new(grip_open)
-    (14, f_2_2_1),  # not new(odom) and new(closed) and not new(part_pose) and not new(grip_open)
-    (13, f_2_2_1),  # new(odom) and new(closed) and not new(part_pose) and not new(grip_open)
-    (12, f_2_2_1),  # not new(odom) and not new(closed) and new(part_pose) and not new(grip_open)
-    (11, f_2_2_1),  # new(odom) and not new(closed) and new(part_pose) and not new(grip_open)
-    (10, f_2_2_1),  # not new(odom) and new(closed) and new(part_pose) and not new(grip_open)
-    (9, f_2_2_1),  # new(odom) and new(closed) and new(part_pose) and not new(grip_open)
-    (8, f_2_2_1),  # not new(odom) and not new(closed) and not new(part_pose) and new(grip_open)
-    (7, f_2_2_1),  # new(odom) and not new(closed) and not new(part_pose) and new(grip_open)
-    (6, f_2_2_1),  # not new(odom) and new(closed) and not new(part_pose) and new(grip_open)
-    (5, f_2_2_1),  # new(odom) and new(closed) and not new(part_pose) and new(grip_open)
-    (4, f_2_2_1),  # not new(odom) and not new(closed) and new(part_pose) and new(grip_open)
-    (3, f_2_2_1),  # new(odom) and not new(closed) and new(part_pose) and new(grip_open)
-    (2, f_2_2_1),  # not new(odom) and new(closed) and new(part_pose) and new(grip_open)
-    (1, f_2_2_1),  # new(odom) and new(closed) and new(part_pose) and new(grip_open)
+    (1, f_2_2_1),  # any data
 )
 CASES_2_3 = (  # clamp: update clamped
-    (16, f_2_3_1),  # not new(odom) and not new(closed) and not new(part_pose) and not new(grip_open)
-    (15, f_2_3_1),  # new(odom) and not new(closed) and not new(part_pose) and not new(grip_open)
-    (14, f_2_3_1),  # not new(odom) and new(closed) and not new(part_pose) and not new(grip_open)
-    (13, f_2_3_1),  # new(odom) and new(closed) and not new(part_pose) and not new(grip_open)
-    (12, f_2_3_1),  # not new(odom) and not new(closed) and new(part_pose) and not new(grip_open)
-    (11, f_2_3_1),  # new(odom) and not new(closed) and new(part_pose) and not new(grip_open)
-    (10, f_2_3_1),  # not new(odom) and new(closed) and new(part_pose) and not new(grip_open)
-    (9, f_2_3_1),  # new(odom) and new(closed) and new(part_pose) and not new(grip_open)
-    (8, f_2_3_1),  # not new(odom) and not new(closed) and not new(part_pose) and new(grip_open)
-    (7, f_2_3_1),  # new(odom) and not new(closed) and not new(part_pose) and new(grip_open)
-    (6, f_2_3_1),  # not new(odom) and new(closed) and not new(part_pose) and new(grip_open)
-    (5, f_2_3_1),  # new(odom) and new(closed) and not new(part_pose) and new(grip_open)
-    (4, f_2_3_1),  # not new(odom) and not new(closed) and new(part_pose) and new(grip_open)
-    (3, f_2_3_1),  # new(odom) and not new(closed) and new(part_pose) and new(grip_open)
-    (2, f_2_3_1),  # not new(odom) and new(closed) and new(part_pose) and new(grip_open)
-    (1, f_2_3_1),  # new(odom) and new(closed) and new(part_pose) and new(grip_open)
+    (1, f_2_3_1),  # any data
 )
 CASES_2_4 = (  # clamp: update memory
-    (16, f_2_4_1),  # not new(odom) and not new(closed) and not new(part_pose) and not new(grip_open)
-    (15, f_2_4_1),  # new(odom) and not new(closed) and not new(part_pose) and not new(grip_open)
-    (14, f_2_4_1),  # not new(odom) and new(closed) and not new(part_pose) and not new(grip_open)
-    (13, f_2_4_1),  # new(odom) and new(closed) and not new(part_pose) and not new(grip_open)
-    (12, f_2_4_1),  # not new(odom) and not new(closed) and new(part_pose) and not new(grip_open)
-    (11, f_2_4_1),  # new(odom) and not new(closed) and new(part_pose) and not new(grip_open)
-    (10, f_2_4_1),  # not new(odom) and new(closed) and new(part_pose) and not new(grip_open)
-    (9, f_2_4_1),  # new(odom) and new(closed) and new(part_pose) and not new(grip_open)
-    (8, f_2_4_1),  # not new(odom) and not new(closed) and not new(part_pose) and new(grip_open)
-    (7, f_2_4_1),  # new(odom) and not new(closed) and not new(part_pose) and new(grip_open)
-    (6, f_2_4_1),  # not new(odom) and new(closed) and not new(part_pose) and new(grip_open)
-    (5, f_2_4_1),  # new(odom) and new(closed) and not new(part_pose) and new(grip_open)
-    (4, f_2_4_1),  # not new(odom) and not new(closed) and new(part_pose) and new(grip_open)
-    (3, f_2_4_1),  # new(odom) and not new(closed) and new(part_pose) and new(grip_open)
-    (2, f_2_4_1),  # not new(odom) and new(closed) and new(part_pose) and new(grip_open)
-    (1, f_2_4_1),  # new(odom) and new(closed) and new(part_pose) and new(grip_open)
+    (1, f_2_4_1),  # any data
 )
 CONDITIONS_2 = (('handed_over', 'terminal', cond_2_1), ('no_part', 'error', cond_2_2))
 
@@ -386,10 +266,10 @@ def iterate_2(r: _Runner) -> _Iteration:
     st = r.state
     mask = r.begin()  # new(x) of the inputs, frozen for the transition function
     stage: dict[str, Any] = {}
-    r.partial(CASES_2_1[mask], st, stage)  # f[base,c,clamp,1]: update target
-    r.partial(CASES_2_2[mask], st, stage)  # f[base,c,clamp,2]: update clamp_cmd
-    r.partial(CASES_2_3[mask], st, stage)  # f[base,c,clamp,3]: update clamped
-    r.partial(CASES_2_4[mask], st, stage)  # f[base,c,clamp,4]: update memory
+    r.partial(CASES_2_1[0], st, stage)  # f[base,c,clamp,1]: update target
+    r.partial(CASES_2_2[0], st, stage)  # f[base,c,clamp,2]: update clamp_cmd
+    r.partial(CASES_2_3[0], st, stage)  # f[base,c,clamp,3]: update clamped
+    r.partial(CASES_2_4[0], st, stage)  # f[base,c,clamp,4]: update memory
     r.commit(stage)  # memory and outputs of i + 1; new(x) cleared
     yield from r.send(('seq', (('buf', 'target'), ('buf', 'clamp_cmd'), ('buf', 'clamped'))))
     r.increment()  # i := i + 1
@@ -408,76 +288,16 @@ def switch_2(st: State, conds: Mapping[str, bool]) -> str | None:
 # ---------------------------------------------------------------- behaviour deliver: P^B[base,c,deliver]
 
 CASES_3_1 = (  # deliver: update target
-    (16, f_3_1_1),  # not new(odom) and not new(closed) and not new(part_pose) and not new(grip_open)
-    (15, f_3_1_1),  # new(odom) and not new(closed) and not new(part_pose) and not new(grip_open)
-    (14, f_3_1_1),  # not new(odom) and new(closed) and not new(part_pose) and not new(grip_open)
-    (13, f_3_1_1),  # new(odom) and new(closed) and not new(part_pose) and not new(grip_open)
-    (12, f_3_1_1),  # not new(odom) and not new(closed) and new(part_pose) and not new(grip_open)
-    (11, f_3_1_1),  # new(odom) and not new(closed) and new(part_pose) and not new(grip_open)
-    (10, f_3_1_1),  # not new(odom) and new(closed) and new(part_pose) and not new(grip_open)
-    (9, f_3_1_1),  # new(odom) and new(closed) and new(part_pose) and not new(grip_open)
-    (8, f_3_1_1),  # not new(odom) and not new(closed) and not new(part_pose) and new(grip_open)
-    (7, f_3_1_1),  # new(odom) and not new(closed) and not new(part_pose) and new(grip_open)
-    (6, f_3_1_1),  # not new(odom) and new(closed) and not new(part_pose) and new(grip_open)
-    (5, f_3_1_1),  # new(odom) and new(closed) and not new(part_pose) and new(grip_open)
-    (4, f_3_1_1),  # not new(odom) and not new(closed) and new(part_pose) and new(grip_open)
-    (3, f_3_1_1),  # new(odom) and not new(closed) and new(part_pose) and new(grip_open)
-    (2, f_3_1_1),  # not new(odom) and new(closed) and new(part_pose) and new(grip_open)
-    (1, f_3_1_1),  # new(odom) and new(closed) and new(part_pose) and new(grip_open)
+    (1, f_3_1_1),  # any data
 )
 CASES_3_2 = (  # deliver: update clamp_cmd
-    (16, f_3_2_1),  # not new(odom) and not new(closed) and not new(part_pose) and not new(grip_open)
-    (15, f_3_2_1),  # new(odom) and not new(closed) and not new(part_pose) and not new(grip_open)
-    (14, f_3_2_1),  # not new(odom) and new(closed) and not new(part_pose) and not new(grip_open)
-    (13, f_3_2_1),  # new(odom) and new(closed) and not new(part_pose) and not new(grip_open)
-    (12, f_3_2_1),  # not new(odom) and not new(closed) and new(part_pose) and not new(grip_open)
-    (11, f_3_2_1),  # new(odom) and not new(closed) and new(part_pose) and not new(grip_open)
-    (10, f_3_2_1),  # not new(odom) and new(closed) and new(part_pose) and not new(grip_open)
-    (9, f_3_2_1),  # new(odom) and new(closed) and new(part_pose) and not new(grip_open)
-    (8, f_3_2_1),  # not new(odom) and not new(closed) and not new(part_pose) and new(grip_open)
-    (7, f_3_2_1),  # new(odom) and not new(closed) and not new(part_pose) and new(grip_open)
-    (6, f_3_2_1),  # not new(odom) and new(closed) and not new(part_pose) and new(grip_open)
-    (5, f_3_2_1),  # new(odom) and new(closed) and not new(part_pose) and new(grip_open)
-    (4, f_3_2_1),  # not new(odom) and not new(closed) and new(part_pose) and new(grip_open)
-    (3, f_3_2_1),  # new(odom) and not new(closed) and new(part_pose) and new(grip_open)
-    (2, f_3_2_1),  # not new(odom) and new(closed) and new(part_pose) and new(grip_open)
-    (1, f_3_2_1),  # new(odom) and new(closed) and new(part_pose) and new(grip_open)
+    (1, f_3_2_1),  # any data
 )
 CASES_3_3 = (  # deliver: update clamped
-    (16, f_3_3_1),  # not new(odom) and not new(closed) and not new(part_pose) and not new(grip_open)
-    (15, f_3_3_1),  # new(odom) and not new(closed) and not new(part_pose) and not new(grip_open)
-    (14, f_3_3_1),  # not new(odom) and new(closed) and not new(part_pose) and not new(grip_open)
-    (13, f_3_3_1),  # new(odom) and new(closed) and not new(part_pose) and not new(grip_open)
-    (12, f_3_3_1),  # not new(odom) and not new(closed) and new(part_pose) and not new(grip_open)
-    (11, f_3_3_1),  # new(odom) and not new(closed) and new(part_pose) and not new(grip_open)
-    (10, f_3_3_1),  # not new(odom) and new(closed) and new(part_pose) and not new(grip_open)
-    (9, f_3_3_1),  # new(odom) and new(closed) and new(part_pose) and not new(grip_open)
-    (8, f_3_3_1),  # not new(odom) and not new(closed) and not new(part_pose) and new(grip_open)
-    (7, f_3_3_1),  # new(odom) and not new(closed) and not new(part_pose) and new(grip_open)
-    (6, f_3_3_1),  # not new(odom) and new(closed) and not new(part_pose) and new(grip_open)
-    (5, f_3_3_1),  # new(odom) and new(closed) and not new(part_pose) and new(grip_open)
-    (4, f_3_3_1),  # not new(odom) and not new(closed) and new(part_pose) and new(grip_open)
-    (3, f_3_3_1),  # new(odom) and not new(closed) and new(part_pose) and new(grip_open)
-    (2, f_3_3_1),  # not new(odom) and new(closed) and new(part_pose) and new(grip_open)
-    (1, f_3_3_1),  # new(odom) and new(closed) and new(part_pose) and new(grip_open)
+    (1, f_3_3_1),  # any data
 )
 CASES_3_4 = (  # deliver: update memory
-    (16, f_3_4_1),  # not new(odom) and not new(closed) and not new(part_pose) and not new(grip_open)
-    (15, f_3_4_1),  # new(odom) and not new(closed) and not new(part_pose) and not new(grip_open)
-    (14, f_3_4_1),  # not new(odom) and new(closed) and not new(part_pose) and not new(grip_open)
-    (13, f_3_4_1),  # new(odom) and new(closed) and not new(part_pose) and not new(grip_open)
-    (12, f_3_4_1),  # not new(odom) and not new(closed) and new(part_pose) and not new(grip_open)
-    (11, f_3_4_1),  # new(odom) and not new(closed) and new(part_pose) and not new(grip_open)
-    (10, f_3_4_1),  # not new(odom) and new(closed) and new(part_pose) and not new(grip_open)
-    (9, f_3_4_1),  # new(odom) and new(closed) and new(part_pose) and not new(grip_open)
-    (8, f_3_4_1),  # not new(odom) and not new(closed) and not new(part_pose) and new(grip_open)
-    (7, f_3_4_1),  # new(odom) and not new(closed) and not new(part_pose) and new(grip_open)
-    (6, f_3_4_1),  # not new(odom) and new(closed) and not new(part_pose) and new(grip_open)
-    (5, f_3_4_1),  # new(odom) and new(closed) and not new(part_pose) and new(grip_open)
-    (4, f_3_4_1),  # not new(odom) and not new(closed) and new(part_pose) and new(grip_open)
-    (3, f_3_4_1),  # new(odom) and not new(closed) and new(part_pose) and new(grip_open)
-    (2, f_3_4_1),  # not new(odom) and new(closed) and new(part_pose) and new(grip_open)
-    (1, f_3_4_1),  # new(odom) and new(closed) and new(part_pose) and new(grip_open)
+    (1, f_3_4_1),  # any data
 )
 CONDITIONS_3 = (('arrived', 'terminal', cond_3_1),)
 
@@ -487,10 +307,10 @@ def iterate_3(r: _Runner) -> _Iteration:
     st = r.state
     mask = r.begin()  # new(x) of the inputs, frozen for the transition function
     stage: dict[str, Any] = {}
-    r.partial(CASES_3_1[mask], st, stage)  # f[base,c,deliver,1]: update target
-    r.partial(CASES_3_2[mask], st, stage)  # f[base,c,deliver,2]: update clamp_cmd
-    r.partial(CASES_3_3[mask], st, stage)  # f[base,c,deliver,3]: update clamped
-    r.partial(CASES_3_4[mask], st, stage)  # f[base,c,deliver,4]: update memory
+    r.partial(CASES_3_1[0], st, stage)  # f[base,c,deliver,1]: update target
+    r.partial(CASES_3_2[0], st, stage)  # f[base,c,deliver,2]: update clamp_cmd
+    r.partial(CASES_3_3[0], st, stage)  # f[base,c,deliver,3]: update clamped
+    r.partial(CASES_3_4[0], st, stage)  # f[base,c,deliver,4]: update memory
     r.commit(stage)  # memory and outputs of i + 1; new(x) cleared
     yield from r.send(('seq', (('buf', 'target'), ('buf', 'clamp_cmd'), ('buf', 'clamped'))))
     r.increment()  # i := i + 1
@@ -509,76 +329,16 @@ def switch_3(st: State, conds: Mapping[str, bool]) -> str | None:
 # ---------------------------------------------------------------- behaviour unload: P^B[base,c,unload]
 
 CASES_4_1 = (  # unload: update target
-    (16, None),  # not new(odom) and not new(closed) and not new(part_pose) and not new(grip_open)
-    (15, None),  # new(odom) and not new(closed) and not new(part_pose) and not new(grip_open)
-    (14, None),  # not new(odom) and new(closed) and not new(part_pose) and not new(grip_open)
-    (13, None),  # new(odom) and new(closed) and not new(part_pose) and not new(grip_open)
-    (12, None),  # not new(odom) and not new(closed) and new(part_pose) and not new(grip_open)
-    (11, None),  # new(odom) and not new(closed) and new(part_pose) and not new(grip_open)
-    (10, None),  # not new(odom) and new(closed) and new(part_pose) and not new(grip_open)
-    (9, None),  # new(odom) and new(closed) and new(part_pose) and not new(grip_open)
-    (8, None),  # not new(odom) and not new(closed) and not new(part_pose) and new(grip_open)
-    (7, None),  # new(odom) and not new(closed) and not new(part_pose) and new(grip_open)
-    (6, None),  # not new(odom) and new(closed) and not new(part_pose) and new(grip_open)
-    (5, None),  # new(odom) and new(closed) and not new(part_pose) and new(grip_open)
-    (4, None),  # not new(odom) and not new(closed) and new(part_pose) and new(grip_open)
-    (3, None),  # new(odom) and not new(closed) and new(part_pose) and new(grip_open)
-    (2, None),  # not new(odom) and new(closed) and new(part_pose) and new(grip_open)
-    (1, None),  # new(odom) and new(closed) and new(part_pose) and new(grip_open)
+    (1, None),  # any data
 )
 CASES_4_2 = (  # unload: update clamp_cmd
-    (16, f_4_2_1),  # not new(odom) and not new(closed) and not new(part_pose) and not new(grip_open)
-    (15, f_4_2_1),  # new(odom) and not new(closed) and not new(part_pose) and not new(grip_open)
-    (14, f_4_2_1),  # not new(odom) and new(closed) and not new(part_pose) and not new(grip_open)
-    (13, f_4_2_1),  # new(odom) and new(closed) and not new(part_pose) and not new(grip_open)
-    (12, f_4_2_1),  # not new(odom) and not new(closed) and new(part_pose) and not new(grip_open)
-    (11, f_4_2_1),  # new(odom) and not new(closed) and new(part_pose) and not new(grip_open)
-    (10, f_4_2_1),  # not new(odom) and new(closed) and new(part_pose) and not new(grip_open)
-    (9, f_4_2_1),  # new(odom) and new(closed) and new(part_pose) and not new(grip_open)
-    (8, f_4_2_1),  # not new(odom) and not new(closed) and not new(part_pose) and new(grip_open)
-    (7, f_4_2_1),  # new(odom) and not new(closed) and not new(part_pose) and new(grip_open)
-    (6, f_4_2_1),  # not new(odom) and new(closed) and not new(part_pose) and new(grip_open)
-    (5, f_4_2_1),  # new(odom) and new(closed) and not new(part_pose) and new(grip_open)
-    (4, f_4_2_1),  # not new(odom) and not new(closed) and new(part_pose) and new(grip_open)
-    (3, f_4_2_1),  # new(odom) and not new(closed) and new(part_pose) and new(grip_open)
-    (2, f_4_2_1),  # not new(odom) and new(closed) and new(part_pose) and new(grip_open)
-    (1, f_4_2_1),  # new(odom) and new(closed) and new(part_pose) and new(grip_open)
+    (1, f_4_2_1),  # any data
 )
 CASES_4_3 = (  # unload: update clamped
-    (16, None),  # not new(odom) and not new(closed) and not new(part_pose) and not new(grip_open)
-    (15, None),  # new(odom) and not new(closed) and not new(part_pose) and not new(grip_open)
-    (14, None),  # not new(odom) and new(closed) and not new(part_pose) and not new(grip_open)
-    (13, None),  # new(odom) and new(closed) and not new(part_pose) and not new(grip_open)
-    (12, None),  # not new(odom) and not new(closed) and new(part_pose) and not new(grip_open)
-    (11, None),  # new(odom) and not new(closed) and new(part_pose) and not new(grip_open)
-    (10, None),  # not new(odom) and new(closed) and new(part_pose) and not new(grip_open)
-    (9, None),  # new(odom) and new(closed) and new(part_pose) and not new(grip_open)
-    (8, None),  # not new(odom) and not new(closed) and not new(part_pose) and new(grip_open)
-    (7, None),  # new(odom) and not new(closed) and not new(part_pose) and new(grip_open)
-    (6, None),  # not new(odom) and new(closed) and not new(part_pose) and new(grip_open)
-    (5, None),  # new(odom) and new(closed) and not new(part_pose) and new(grip_open)
-    (4, None),  # not new(odom) and not new(closed) and new(part_pose) and new(grip_open)
-    (3, None),  # new(odom) and not new(closed) and new(part_pose) and new(grip_open)
-    (2, None),  # not new(odom) and new(closed) and new(part_pose) and new(grip_open)
-    (1, None),  # new(odom) and new(closed) and new(part_pose) and new(grip_open)
+    (1, None),  # any data
 )
 CASES_4_4 = (  # unload: update memory
-    (16, f_4_4_1),  # not new(odom) and not new(closed) and not new(part_pose) and not new(grip_open)
-    (15, f_4_4_1),  # new(odom) and not new(closed) and not new(part_pose) and not new(grip_open)
-    (14, f_4_4_1),  # not new(odom) and new(closed) and not new(part_pose) and not new(grip_open)
-    (13, f_4_4_1),  # new(odom) and new(closed) and not new(part_pose) and not new(grip_open)
-    (12, f_4_4_1),  # not new(odom) and not new(closed) and new(part_pose) and not new(grip_open)
-    (11, f_4_4_1),  # new(odom) and not new(closed) and new(part_pose) and not new(grip_open)
-    (10, f_4_4_1),  # not new(odom) and new(closed) and new(part_pose) and not new(grip_open)
-    (9, f_4_4_1),  # new(odom) and new(closed) and new(part_pose) and not new(grip_open)
-    (8, f_4_4_1),  # not new(odom) and not new(closed) and not new(part_pose) and new(grip_open)
-    (7, f_4_4_1),  # new(odom) and not new(closed) and not new(part_pose) and new(grip_open)
-    (6, f_4_4_1),  # not new(odom) and new(closed) and not new(part_pose) and new(grip_open)
-    (5, f_4_4_1),  # new(odom) and new(closed) and not new(part_pose) and new(grip_open)
-    (4, f_4_4_1),  # not new(odom) and not new(closed) and new(part_pose) and new(grip_open)
-    (3, f_4_4_1),  # new(odom) and not new(closed) and new(part_pose) and new(grip_open)
-    (2, f_4_4_1),  # not new(odom) and new(closed) and new(part_pose) and new(grip_open)
-    (1, f_4_4_1),  # new(odom) and new(closed) and new(part_pose) and new(grip_open)
+    (1, f_4_4_1),  # any data
 )
 CONDITIONS_4 = (('emptied', 'terminal', cond_4_1),)
 
@@ -588,10 +348,10 @@ def iterate_4(r: _Runner) -> _Iteration:
     st = r.state
     mask = r.begin()  # new(x) of the inputs, frozen for the transition function
     stage: dict[str, Any] = {}
-    r.partial(CASES_4_1[mask], st, stage)  # f[base,c,unload,1]: update target
-    r.partial(CASES_4_2[mask], st, stage)  # f[base,c,unload,2]: update clamp_cmd
-    r.partial(CASES_4_3[mask], st, stage)  # f[base,c,unload,3]: update clamped
-    r.partial(CASES_4_4[mask], st, stage)  # f[base,c,unload,4]: update memory
+    r.partial(CASES_4_1[0], st, stage)  # f[base,c,unload,1]: update target
+    r.partial(CASES_4_2[0], st, stage)  # f[base,c,unload,2]: update clamp_cmd
+    r.partial(CASES_4_3[0], st, stage)  # f[base,c,unload,3]: update clamped
+    r.partial(CASES_4_4[0], st, stage)  # f[base,c,unload,4]: update memory
     r.commit(stage)  # memory and outputs of i + 1; new(x) cleared
     yield from r.send(('seq', (('buf', 'target'), ('buf', 'clamp_cmd'), ('buf', 'clamped'))))
     r.increment()  # i := i + 1

@@ -88,22 +88,14 @@ def cond_1_1(st: State) -> bool:
 # ---------------------------------------------------------------- behaviour track: P^B[base,drive,track]
 
 CASES_1_1 = (  # track: update goal
-    (4, f_1_1_1),  # not new(target) and not new(odometry)
-    (3, f_1_1_1),  # new(target) and not new(odometry)
-    (2, f_1_1_1),  # not new(target) and new(odometry)
-    (1, f_1_1_1),  # new(target) and new(odometry)
+    (1, f_1_1_1),  # any data
 )
 CASES_1_2 = (  # track: update odom
-    (4, None),  # not new(target) and not new(odometry)
-    (3, None),  # new(target) and not new(odometry)
-    (2, f_1_2_1),  # not new(target) and new(odometry)
-    (1, f_1_2_1),  # new(target) and new(odometry)
+    (2, None),  # not new(odometry)
+    (1, f_1_2_1),  # new(odometry)
 )
 CASES_1_3 = (  # track: update memory
-    (4, None),  # not new(target) and not new(odometry)
-    (3, None),  # new(target) and not new(odometry)
-    (2, None),  # not new(target) and new(odometry)
-    (1, None),  # new(target) and new(odometry)
+    (1, None),  # any data
 )
 CONDITIONS_1 = (('never', 'terminal', cond_1_1),)
 
@@ -113,9 +105,9 @@ def iterate_1(r: _Runner) -> _Iteration:
     st = r.state
     mask = r.begin()  # new(x) of the inputs, frozen for the transition function
     stage: dict[str, Any] = {}
-    r.partial(CASES_1_1[mask], st, stage)  # f[base,drive,track,1]: update goal
-    r.partial(CASES_1_2[mask], st, stage)  # f[base,drive,track,2]: update odom
-    r.partial(CASES_1_3[mask], st, stage)  # f[base,drive,track,3]: update memory
+    r.partial(CASES_1_1[0], st, stage)  # f[base,drive,track,1]: update goal
+    r.partial(CASES_1_2[(mask >> 1 & 1)], st, stage)  # f[base,drive,track,2]: update odom
+    r.partial(CASES_1_3[0], st, stage)  # f[base,drive,track,3]: update memory
     r.commit(stage)  # memory and outputs of i + 1; new(x) cleared
     yield from r.send(('seq', (('buf', 'goal'), ('buf', 'odom'))))
     r.increment()  # i := i + 1

@@ -101,10 +101,7 @@ def cond_2_2(st: State) -> bool:
 # ---------------------------------------------------------------- behaviour p: P^B[robot,c,p]
 
 CASES_1_1 = (  # p: update memory
-    (4, f_1_1_1),  # not new(x) and not new(y)
-    (3, f_1_1_1),  # new(x) and not new(y)
-    (2, f_1_1_1),  # not new(x) and new(y)
-    (1, f_1_1_1),  # new(x) and new(y)
+    (1, f_1_1_1),  # any data
 )
 CONDITIONS_1 = (('once', 'terminal', cond_1_1), ('off_feeder', 'error', cond_1_2))
 
@@ -114,7 +111,7 @@ def iterate_1(r: _Runner) -> _Iteration:
     st = r.state
     mask = r.begin()  # new(x) of the inputs, frozen for the transition function
     stage: dict[str, Any] = {}
-    r.partial(CASES_1_1[mask], st, stage)  # f[robot,c,p,1]: update memory
+    r.partial(CASES_1_1[0], st, stage)  # f[robot,c,p,1]: update memory
     r.commit(stage)  # memory and outputs of i + 1; new(x) cleared
     r.increment()  # i := i + 1
     yield from r.receive(('seq', (('buf', 'x'), ('buf', 'y'))))
@@ -132,10 +129,7 @@ def switch_1(st: State, conds: Mapping[str, bool]) -> str | None:
 # ---------------------------------------------------------------- behaviour q: P^B[robot,c,q]
 
 CASES_2_1 = (  # q: update memory
-    (4, f_2_1_1),  # not new(x) and not new(y)
-    (3, f_2_1_1),  # new(x) and not new(y)
-    (2, f_2_1_1),  # not new(x) and new(y)
-    (1, f_2_1_1),  # new(x) and new(y)
+    (1, f_2_1_1),  # any data
 )
 CONDITIONS_2 = (('once', 'terminal', cond_2_1), ('off_feeder', 'error', cond_2_2))
 
@@ -145,7 +139,7 @@ def iterate_2(r: _Runner) -> _Iteration:
     st = r.state
     mask = r.begin()  # new(x) of the inputs, frozen for the transition function
     stage: dict[str, Any] = {}
-    r.partial(CASES_2_1[mask], st, stage)  # f[robot,c,q,1]: update memory
+    r.partial(CASES_2_1[0], st, stage)  # f[robot,c,q,1]: update memory
     r.commit(stage)  # memory and outputs of i + 1; new(x) cleared
     r.increment()  # i := i + 1
     yield from r.receive(('seq', (('buf', 'y'), ('buf', 'x'))))

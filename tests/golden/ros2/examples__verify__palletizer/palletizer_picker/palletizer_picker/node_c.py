@@ -204,22 +204,13 @@ def cond_5_1(st: State) -> bool:
 # ---------------------------------------------------------------- behaviour idle: P^B[picker,c,idle]
 
 CASES_1_1 = (  # idle: update state
-    (4, None),  # not new(order) and not new(tool)
-    (3, None),  # new(order) and not new(tool)
-    (2, None),  # not new(order) and new(tool)
-    (1, None),  # new(order) and new(tool)
+    (1, None),  # any data
 )
 CASES_1_2 = (  # idle: update tool_cmd
-    (4, f_1_2_1),  # not new(order) and not new(tool)
-    (3, f_1_2_1),  # new(order) and not new(tool)
-    (2, f_1_2_1),  # not new(order) and new(tool)
-    (1, f_1_2_1),  # new(order) and new(tool)
+    (1, f_1_2_1),  # any data
 )
 CASES_1_3 = (  # idle: update memory
-    (4, f_1_3_1),  # not new(order) and not new(tool)
-    (3, f_1_3_1),  # new(order) and not new(tool)
-    (2, f_1_3_1),  # not new(order) and new(tool)
-    (1, f_1_3_1),  # new(order) and new(tool)
+    (1, f_1_3_1),  # any data
 )
 CONDITIONS_1 = (('ordered', 'terminal', cond_1_1),)
 
@@ -229,9 +220,9 @@ def iterate_1(r: _Runner) -> _Iteration:
     st = r.state
     mask = r.begin()  # new(x) of the inputs, frozen for the transition function
     stage: dict[str, Any] = {}
-    r.partial(CASES_1_1[mask], st, stage)  # f[picker,c,idle,1]: update state
-    r.partial(CASES_1_2[mask], st, stage)  # f[picker,c,idle,2]: update tool_cmd
-    r.partial(CASES_1_3[mask], st, stage)  # f[picker,c,idle,3]: update memory
+    r.partial(CASES_1_1[0], st, stage)  # f[picker,c,idle,1]: update state
+    r.partial(CASES_1_2[0], st, stage)  # f[picker,c,idle,2]: update tool_cmd
+    r.partial(CASES_1_3[0], st, stage)  # f[picker,c,idle,3]: update memory
     r.commit(stage)  # memory and outputs of i + 1; new(x) cleared
     yield from r.send(('seq', (('buf', 'state'), ('buf', 'tool_cmd'))))
     r.increment()  # i := i + 1
@@ -250,22 +241,13 @@ def switch_1(st: State, conds: Mapping[str, bool]) -> str | None:
 # ---------------------------------------------------------------- behaviour pick: P^B[picker,c,pick]
 
 CASES_2_1 = (  # pick: update state
-    (4, None),  # not new(order) and not new(tool)
-    (3, None),  # new(order) and not new(tool)
-    (2, None),  # not new(order) and new(tool)
-    (1, None),  # new(order) and new(tool)
+    (1, None),  # any data
 )
 CASES_2_2 = (  # pick: update tool_cmd
-    (4, f_2_2_1),  # not new(order) and not new(tool)
-    (3, f_2_2_1),  # new(order) and not new(tool)
-    (2, f_2_2_1),  # not new(order) and new(tool)
-    (1, f_2_2_1),  # new(order) and new(tool)
+    (1, f_2_2_1),  # any data
 )
 CASES_2_3 = (  # pick: update memory
-    (4, f_2_3_1),  # not new(order) and not new(tool)
-    (3, f_2_3_1),  # new(order) and not new(tool)
-    (2, f_2_3_1),  # not new(order) and new(tool)
-    (1, f_2_3_1),  # new(order) and new(tool)
+    (1, f_2_3_1),  # any data
 )
 CONDITIONS_2 = (('attached', 'terminal', cond_2_1), ('no_seal', 'error', cond_2_2))
 
@@ -275,9 +257,9 @@ def iterate_2(r: _Runner) -> _Iteration:
     st = r.state
     mask = r.begin()  # new(x) of the inputs, frozen for the transition function
     stage: dict[str, Any] = {}
-    r.partial(CASES_2_1[mask], st, stage)  # f[picker,c,pick,1]: update state
-    r.partial(CASES_2_2[mask], st, stage)  # f[picker,c,pick,2]: update tool_cmd
-    r.partial(CASES_2_3[mask], st, stage)  # f[picker,c,pick,3]: update memory
+    r.partial(CASES_2_1[0], st, stage)  # f[picker,c,pick,1]: update state
+    r.partial(CASES_2_2[0], st, stage)  # f[picker,c,pick,2]: update tool_cmd
+    r.partial(CASES_2_3[0], st, stage)  # f[picker,c,pick,3]: update memory
     r.commit(stage)  # memory and outputs of i + 1; new(x) cleared
     yield from r.send(('seq', (('buf', 'state'), ('buf', 'tool_cmd'))))
     r.increment()  # i := i + 1
@@ -296,22 +278,13 @@ def switch_2(st: State, conds: Mapping[str, bool]) -> str | None:
 # ---------------------------------------------------------------- behaviour place: P^B[picker,c,place]
 
 CASES_3_1 = (  # place: update state
-    (4, None),  # not new(order) and not new(tool)
-    (3, None),  # new(order) and not new(tool)
-    (2, None),  # not new(order) and new(tool)
-    (1, None),  # new(order) and new(tool)
+    (1, None),  # any data
 )
 CASES_3_2 = (  # place: update tool_cmd
-    (4, f_3_2_1),  # not new(order) and not new(tool)
-    (3, f_3_2_1),  # new(order) and not new(tool)
-    (2, f_3_2_1),  # not new(order) and new(tool)
-    (1, f_3_2_1),  # new(order) and new(tool)
+    (1, f_3_2_1),  # any data
 )
 CASES_3_3 = (  # place: update memory
-    (4, None),  # not new(order) and not new(tool)
-    (3, None),  # new(order) and not new(tool)
-    (2, None),  # not new(order) and new(tool)
-    (1, None),  # new(order) and new(tool)
+    (1, None),  # any data
 )
 CONDITIONS_3 = (('released', 'terminal', cond_3_1),)
 
@@ -321,9 +294,9 @@ def iterate_3(r: _Runner) -> _Iteration:
     st = r.state
     mask = r.begin()  # new(x) of the inputs, frozen for the transition function
     stage: dict[str, Any] = {}
-    r.partial(CASES_3_1[mask], st, stage)  # f[picker,c,place,1]: update state
-    r.partial(CASES_3_2[mask], st, stage)  # f[picker,c,place,2]: update tool_cmd
-    r.partial(CASES_3_3[mask], st, stage)  # f[picker,c,place,3]: update memory
+    r.partial(CASES_3_1[0], st, stage)  # f[picker,c,place,1]: update state
+    r.partial(CASES_3_2[0], st, stage)  # f[picker,c,place,2]: update tool_cmd
+    r.partial(CASES_3_3[0], st, stage)  # f[picker,c,place,3]: update memory
     r.commit(stage)  # memory and outputs of i + 1; new(x) cleared
     yield from r.send(('seq', (('buf', 'state'), ('buf', 'tool_cmd'))))
     r.increment()  # i := i + 1
@@ -342,22 +315,13 @@ def switch_3(st: State, conds: Mapping[str, bool]) -> str | None:
 # ---------------------------------------------------------------- behaviour retreat: P^B[picker,c,retreat]
 
 CASES_4_1 = (  # retreat: update state
-    (4, f_4_1_1),  # not new(order) and not new(tool)
-    (3, f_4_1_1),  # new(order) and not new(tool)
-    (2, f_4_1_1),  # not new(order) and new(tool)
-    (1, f_4_1_1),  # new(order) and new(tool)
+    (1, f_4_1_1),  # any data
 )
 CASES_4_2 = (  # retreat: update tool_cmd
-    (4, f_4_2_1),  # not new(order) and not new(tool)
-    (3, f_4_2_1),  # new(order) and not new(tool)
-    (2, f_4_2_1),  # not new(order) and new(tool)
-    (1, f_4_2_1),  # new(order) and new(tool)
+    (1, f_4_2_1),  # any data
 )
 CASES_4_3 = (  # retreat: update memory
-    (4, None),  # not new(order) and not new(tool)
-    (3, None),  # new(order) and not new(tool)
-    (2, None),  # not new(order) and new(tool)
-    (1, None),  # new(order) and new(tool)
+    (1, None),  # any data
 )
 CONDITIONS_4 = (('at_home', 'terminal', cond_4_1),)
 
@@ -367,9 +331,9 @@ def iterate_4(r: _Runner) -> _Iteration:
     st = r.state
     mask = r.begin()  # new(x) of the inputs, frozen for the transition function
     stage: dict[str, Any] = {}
-    r.partial(CASES_4_1[mask], st, stage)  # f[picker,c,retreat,1]: update state
-    r.partial(CASES_4_2[mask], st, stage)  # f[picker,c,retreat,2]: update tool_cmd
-    r.partial(CASES_4_3[mask], st, stage)  # f[picker,c,retreat,3]: update memory
+    r.partial(CASES_4_1[0], st, stage)  # f[picker,c,retreat,1]: update state
+    r.partial(CASES_4_2[0], st, stage)  # f[picker,c,retreat,2]: update tool_cmd
+    r.partial(CASES_4_3[0], st, stage)  # f[picker,c,retreat,3]: update memory
     r.commit(stage)  # memory and outputs of i + 1; new(x) cleared
     yield from r.send(('seq', (('buf', 'state'), ('buf', 'tool_cmd'))))
     r.increment()  # i := i + 1
@@ -388,22 +352,13 @@ def switch_4(st: State, conds: Mapping[str, bool]) -> str | None:
 # ---------------------------------------------------------------- behaviour recover: P^B[picker,c,recover]
 
 CASES_5_1 = (  # recover: update state
-    (4, f_5_1_1),  # not new(order) and not new(tool)
-    (3, f_5_1_1),  # new(order) and not new(tool)
-    (2, f_5_1_1),  # not new(order) and new(tool)
-    (1, f_5_1_1),  # new(order) and new(tool)
+    (1, f_5_1_1),  # any data
 )
 CASES_5_2 = (  # recover: update tool_cmd
-    (4, f_5_2_1),  # not new(order) and not new(tool)
-    (3, f_5_2_1),  # new(order) and not new(tool)
-    (2, f_5_2_1),  # not new(order) and new(tool)
-    (1, f_5_2_1),  # new(order) and new(tool)
+    (1, f_5_2_1),  # any data
 )
 CASES_5_3 = (  # recover: update memory
-    (4, None),  # not new(order) and not new(tool)
-    (3, None),  # new(order) and not new(tool)
-    (2, None),  # not new(order) and new(tool)
-    (1, None),  # new(order) and new(tool)
+    (1, None),  # any data
 )
 CONDITIONS_5 = (('recovered', 'terminal', cond_5_1),)
 
@@ -413,9 +368,9 @@ def iterate_5(r: _Runner) -> _Iteration:
     st = r.state
     mask = r.begin()  # new(x) of the inputs, frozen for the transition function
     stage: dict[str, Any] = {}
-    r.partial(CASES_5_1[mask], st, stage)  # f[picker,c,recover,1]: update state
-    r.partial(CASES_5_2[mask], st, stage)  # f[picker,c,recover,2]: update tool_cmd
-    r.partial(CASES_5_3[mask], st, stage)  # f[picker,c,recover,3]: update memory
+    r.partial(CASES_5_1[0], st, stage)  # f[picker,c,recover,1]: update state
+    r.partial(CASES_5_2[0], st, stage)  # f[picker,c,recover,2]: update tool_cmd
+    r.partial(CASES_5_3[0], st, stage)  # f[picker,c,recover,3]: update memory
     r.commit(stage)  # memory and outputs of i + 1; new(x) cleared
     yield from r.send(('seq', (('buf', 'state'), ('buf', 'tool_cmd'))))
     r.increment()  # i := i + 1

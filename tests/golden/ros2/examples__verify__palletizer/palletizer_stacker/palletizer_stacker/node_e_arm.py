@@ -94,22 +94,13 @@ def cond_1_1(st: State) -> bool:
 # ---------------------------------------------------------------- behaviour track: P^B[stacker,arm,track]
 
 CASES_1_1 = (  # track: update command
-    (4, f_1_1_1),  # not new(tool_cmd) and not new(feedback)
-    (3, f_1_1_1),  # new(tool_cmd) and not new(feedback)
-    (2, f_1_1_1),  # not new(tool_cmd) and new(feedback)
-    (1, f_1_1_1),  # new(tool_cmd) and new(feedback)
+    (1, f_1_1_1),  # any data
 )
 CASES_1_2 = (  # track: update tool
-    (4, f_1_2_1),  # not new(tool_cmd) and not new(feedback)
-    (3, f_1_2_1),  # new(tool_cmd) and not new(feedback)
-    (2, f_1_2_1),  # not new(tool_cmd) and new(feedback)
-    (1, f_1_2_1),  # new(tool_cmd) and new(feedback)
+    (1, f_1_2_1),  # any data
 )
 CASES_1_3 = (  # track: update memory
-    (4, None),  # not new(tool_cmd) and not new(feedback)
-    (3, None),  # new(tool_cmd) and not new(feedback)
-    (2, None),  # not new(tool_cmd) and new(feedback)
-    (1, None),  # new(tool_cmd) and new(feedback)
+    (1, None),  # any data
 )
 CONDITIONS_1 = (('never', 'terminal', cond_1_1),)
 
@@ -119,9 +110,9 @@ def iterate_1(r: _Runner) -> _Iteration:
     st = r.state
     mask = r.begin()  # new(x) of the inputs, frozen for the transition function
     stage: dict[str, Any] = {}
-    r.partial(CASES_1_1[mask], st, stage)  # f[stacker,arm,track,1]: update command
-    r.partial(CASES_1_2[mask], st, stage)  # f[stacker,arm,track,2]: update tool
-    r.partial(CASES_1_3[mask], st, stage)  # f[stacker,arm,track,3]: update memory
+    r.partial(CASES_1_1[0], st, stage)  # f[stacker,arm,track,1]: update command
+    r.partial(CASES_1_2[0], st, stage)  # f[stacker,arm,track,2]: update tool
+    r.partial(CASES_1_3[0], st, stage)  # f[stacker,arm,track,3]: update memory
     r.commit(stage)  # memory and outputs of i + 1; new(x) cleared
     yield from r.send(('seq', (('buf', 'command'), ('buf', 'tool'))))
     r.increment()  # i := i + 1

@@ -157,34 +157,13 @@ def cond_3_1(st: State) -> bool:
 # ---------------------------------------------------------------- behaviour run: P^B[supervisor,c,run]
 
 CASES_1_1 = (  # run: update pick_order
-    (8, f_1_1_1),  # not new(box) and not new(picker_state) and not new(stacker_state)
-    (7, f_1_1_1),  # new(box) and not new(picker_state) and not new(stacker_state)
-    (6, f_1_1_1),  # not new(box) and new(picker_state) and not new(stacker_state)
-    (5, f_1_1_1),  # new(box) and new(picker_state) and not new(stacker_state)
-    (4, f_1_1_1),  # not new(box) and not new(picker_state) and new(stacker_state)
-    (3, f_1_1_1),  # new(box) and not new(picker_state) and new(stacker_state)
-    (2, f_1_1_1),  # not new(box) and new(picker_state) and new(stacker_state)
-    (1, f_1_1_1),  # new(box) and new(picker_state) and new(stacker_state)
+    (1, f_1_1_1),  # any data
 )
 CASES_1_2 = (  # run: update stack_order
-    (8, f_1_2_1),  # not new(box) and not new(picker_state) and not new(stacker_state)
-    (7, f_1_2_1),  # new(box) and not new(picker_state) and not new(stacker_state)
-    (6, f_1_2_1),  # not new(box) and new(picker_state) and not new(stacker_state)
-    (5, f_1_2_1),  # new(box) and new(picker_state) and not new(stacker_state)
-    (4, f_1_2_1),  # not new(box) and not new(picker_state) and new(stacker_state)
-    (3, f_1_2_1),  # new(box) and not new(picker_state) and new(stacker_state)
-    (2, f_1_2_1),  # not new(box) and new(picker_state) and new(stacker_state)
-    (1, f_1_2_1),  # new(box) and new(picker_state) and new(stacker_state)
+    (1, f_1_2_1),  # any data
 )
 CASES_1_3 = (  # run: update memory
-    (8, f_1_3_1),  # not new(box) and not new(picker_state) and not new(stacker_state)
-    (7, f_1_3_1),  # new(box) and not new(picker_state) and not new(stacker_state)
-    (6, f_1_3_1),  # not new(box) and new(picker_state) and not new(stacker_state)
-    (5, f_1_3_1),  # new(box) and new(picker_state) and not new(stacker_state)
-    (4, f_1_3_1),  # not new(box) and not new(picker_state) and new(stacker_state)
-    (3, f_1_3_1),  # new(box) and not new(picker_state) and new(stacker_state)
-    (2, f_1_3_1),  # not new(box) and new(picker_state) and new(stacker_state)
-    (1, f_1_3_1),  # new(box) and new(picker_state) and new(stacker_state)
+    (1, f_1_3_1),  # any data
 )
 CONDITIONS_1 = (('pallet_full', 'terminal', cond_1_1), ('fault', 'error', cond_1_2))
 
@@ -194,9 +173,9 @@ def iterate_1(r: _Runner) -> _Iteration:
     st = r.state
     mask = r.begin()  # new(x) of the inputs, frozen for the transition function
     stage: dict[str, Any] = {}
-    r.partial(CASES_1_1[mask], st, stage)  # f[supervisor,c,run,1]: update pick_order
-    r.partial(CASES_1_2[mask], st, stage)  # f[supervisor,c,run,2]: update stack_order
-    r.partial(CASES_1_3[mask], st, stage)  # f[supervisor,c,run,3]: update memory
+    r.partial(CASES_1_1[0], st, stage)  # f[supervisor,c,run,1]: update pick_order
+    r.partial(CASES_1_2[0], st, stage)  # f[supervisor,c,run,2]: update stack_order
+    r.partial(CASES_1_3[0], st, stage)  # f[supervisor,c,run,3]: update memory
     r.commit(stage)  # memory and outputs of i + 1; new(x) cleared
     yield from r.send(('seq', (('buf', 'pick_order'), ('buf', 'stack_order'))))
     r.increment()  # i := i + 1
@@ -215,34 +194,13 @@ def switch_1(st: State, conds: Mapping[str, bool]) -> str | None:
 # ---------------------------------------------------------------- behaviour pallet_change: P^B[supervisor,c,pallet_change]
 
 CASES_2_1 = (  # pallet_change: update pick_order
-    (8, None),  # not new(box) and not new(picker_state) and not new(stacker_state)
-    (7, None),  # new(box) and not new(picker_state) and not new(stacker_state)
-    (6, None),  # not new(box) and new(picker_state) and not new(stacker_state)
-    (5, None),  # new(box) and new(picker_state) and not new(stacker_state)
-    (4, None),  # not new(box) and not new(picker_state) and new(stacker_state)
-    (3, None),  # new(box) and not new(picker_state) and new(stacker_state)
-    (2, None),  # not new(box) and new(picker_state) and new(stacker_state)
-    (1, None),  # new(box) and new(picker_state) and new(stacker_state)
+    (1, None),  # any data
 )
 CASES_2_2 = (  # pallet_change: update stack_order
-    (8, None),  # not new(box) and not new(picker_state) and not new(stacker_state)
-    (7, None),  # new(box) and not new(picker_state) and not new(stacker_state)
-    (6, None),  # not new(box) and new(picker_state) and not new(stacker_state)
-    (5, None),  # new(box) and new(picker_state) and not new(stacker_state)
-    (4, None),  # not new(box) and not new(picker_state) and new(stacker_state)
-    (3, None),  # new(box) and not new(picker_state) and new(stacker_state)
-    (2, None),  # not new(box) and new(picker_state) and new(stacker_state)
-    (1, None),  # new(box) and new(picker_state) and new(stacker_state)
+    (1, None),  # any data
 )
 CASES_2_3 = (  # pallet_change: update memory
-    (8, f_2_3_1),  # not new(box) and not new(picker_state) and not new(stacker_state)
-    (7, f_2_3_1),  # new(box) and not new(picker_state) and not new(stacker_state)
-    (6, f_2_3_1),  # not new(box) and new(picker_state) and not new(stacker_state)
-    (5, f_2_3_1),  # new(box) and new(picker_state) and not new(stacker_state)
-    (4, f_2_3_1),  # not new(box) and not new(picker_state) and new(stacker_state)
-    (3, f_2_3_1),  # new(box) and not new(picker_state) and new(stacker_state)
-    (2, f_2_3_1),  # not new(box) and new(picker_state) and new(stacker_state)
-    (1, f_2_3_1),  # new(box) and new(picker_state) and new(stacker_state)
+    (1, f_2_3_1),  # any data
 )
 CONDITIONS_2 = (('swapped', 'terminal', cond_2_1),)
 
@@ -252,9 +210,9 @@ def iterate_2(r: _Runner) -> _Iteration:
     st = r.state
     mask = r.begin()  # new(x) of the inputs, frozen for the transition function
     stage: dict[str, Any] = {}
-    r.partial(CASES_2_1[mask], st, stage)  # f[supervisor,c,pallet_change,1]: update pick_order
-    r.partial(CASES_2_2[mask], st, stage)  # f[supervisor,c,pallet_change,2]: update stack_order
-    r.partial(CASES_2_3[mask], st, stage)  # f[supervisor,c,pallet_change,3]: update memory
+    r.partial(CASES_2_1[0], st, stage)  # f[supervisor,c,pallet_change,1]: update pick_order
+    r.partial(CASES_2_2[0], st, stage)  # f[supervisor,c,pallet_change,2]: update stack_order
+    r.partial(CASES_2_3[0], st, stage)  # f[supervisor,c,pallet_change,3]: update memory
     r.commit(stage)  # memory and outputs of i + 1; new(x) cleared
     yield from r.send(('seq', (('buf', 'pick_order'), ('buf', 'stack_order'))))
     r.increment()  # i := i + 1
@@ -273,34 +231,16 @@ def switch_2(st: State, conds: Mapping[str, bool]) -> str | None:
 # ---------------------------------------------------------------- behaviour halted: P^B[supervisor,c,halted]
 
 CASES_3_1 = (  # halted: update pick_order
-    (8, None),  # not new(box) and not new(picker_state) and not new(stacker_state)
-    (7, None),  # new(box) and not new(picker_state) and not new(stacker_state)
-    (6, None),  # not new(box) and new(picker_state) and not new(stacker_state)
-    (5, None),  # new(box) and new(picker_state) and not new(stacker_state)
-    (4, None),  # not new(box) and not new(picker_state) and new(stacker_state)
-    (3, None),  # new(box) and not new(picker_state) and new(stacker_state)
-    (2, None),  # not new(box) and new(picker_state) and new(stacker_state)
-    (1, None),  # new(box) and new(picker_state) and new(stacker_state)
+    (1, None),  # any data
 )
 CASES_3_2 = (  # halted: update stack_order
-    (8, None),  # not new(box) and not new(picker_state) and not new(stacker_state)
-    (7, None),  # new(box) and not new(picker_state) and not new(stacker_state)
-    (6, None),  # not new(box) and new(picker_state) and not new(stacker_state)
-    (5, None),  # new(box) and new(picker_state) and not new(stacker_state)
-    (4, None),  # not new(box) and not new(picker_state) and new(stacker_state)
-    (3, None),  # new(box) and not new(picker_state) and new(stacker_state)
-    (2, None),  # not new(box) and new(picker_state) and new(stacker_state)
-    (1, None),  # new(box) and new(picker_state) and new(stacker_state)
+    (1, None),  # any data
 )
 CASES_3_3 = (  # halted: update memory
-    (8, None),  # not new(box) and not new(picker_state) and not new(stacker_state)
-    (7, None),  # new(box) and not new(picker_state) and not new(stacker_state)
-    (6, None),  # not new(box) and new(picker_state) and not new(stacker_state)
-    (5, None),  # new(box) and new(picker_state) and not new(stacker_state)
-    (4, None),  # not new(box) and not new(picker_state) and new(stacker_state)
-    (3, None),  # new(box) and not new(picker_state) and new(stacker_state)
-    (2, f_3_3_1),  # not new(box) and new(picker_state) and new(stacker_state)
-    (1, f_3_3_1),  # new(box) and new(picker_state) and new(stacker_state)
+    (4, None),  # not new(picker_state) and not new(stacker_state)
+    (3, None),  # new(picker_state) and not new(stacker_state)
+    (2, None),  # not new(picker_state) and new(stacker_state)
+    (1, f_3_3_1),  # new(picker_state) and new(stacker_state)
 )
 CONDITIONS_3 = (('healthy', 'terminal', cond_3_1),)
 
@@ -310,9 +250,9 @@ def iterate_3(r: _Runner) -> _Iteration:
     st = r.state
     mask = r.begin()  # new(x) of the inputs, frozen for the transition function
     stage: dict[str, Any] = {}
-    r.partial(CASES_3_1[mask], st, stage)  # f[supervisor,c,halted,1]: update pick_order
-    r.partial(CASES_3_2[mask], st, stage)  # f[supervisor,c,halted,2]: update stack_order
-    r.partial(CASES_3_3[mask], st, stage)  # f[supervisor,c,halted,3]: update memory
+    r.partial(CASES_3_1[0], st, stage)  # f[supervisor,c,halted,1]: update pick_order
+    r.partial(CASES_3_2[0], st, stage)  # f[supervisor,c,halted,2]: update stack_order
+    r.partial(CASES_3_3[(mask >> 1 & 1) | (mask >> 2 & 1) << 1], st, stage)  # f[supervisor,c,halted,3]: update memory
     r.commit(stage)  # memory and outputs of i + 1; new(x) cleared
     yield from r.send(('seq', (('buf', 'pick_order'), ('buf', 'stack_order'))))
     r.increment()  # i := i + 1

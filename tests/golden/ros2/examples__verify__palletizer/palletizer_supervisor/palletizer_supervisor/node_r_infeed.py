@@ -86,8 +86,7 @@ def cond_1_1(st: State) -> bool:
 # ---------------------------------------------------------------- behaviour debounce: P^B[supervisor,infeed,debounce]
 
 CASES_1_1 = (  # debounce: update settled
-    (2, f_1_1_1),  # not new(box)
-    (1, f_1_1_1),  # new(box)
+    (1, f_1_1_1),  # any data
 )
 CASES_1_2 = (  # debounce: update memory
     (2, None),  # not new(box)
@@ -101,7 +100,7 @@ def iterate_1(r: _Runner) -> _Iteration:
     st = r.state
     mask = r.begin()  # new(x) of the inputs, frozen for the transition function
     stage: dict[str, Any] = {}
-    r.partial(CASES_1_1[mask], st, stage)  # f[supervisor,infeed,debounce,1]: update settled
+    r.partial(CASES_1_1[0], st, stage)  # f[supervisor,infeed,debounce,1]: update settled
     r.partial(CASES_1_2[mask], st, stage)  # f[supervisor,infeed,debounce,2]: update memory
     r.commit(stage)  # memory and outputs of i + 1; new(x) cleared
     yield from r.send(('buf', 'settled'))

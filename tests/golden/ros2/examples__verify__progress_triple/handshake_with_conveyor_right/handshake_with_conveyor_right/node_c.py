@@ -83,12 +83,10 @@ def cond_1_1(st: State) -> bool:
 # ---------------------------------------------------------------- behaviour exchange: P^B[right,c,exchange]
 
 CASES_1_1 = (  # exchange: update mine
-    (2, f_1_1_1),  # not new(theirs)
-    (1, f_1_1_1),  # new(theirs)
+    (1, f_1_1_1),  # any data
 )
 CASES_1_2 = (  # exchange: update memory
-    (2, f_1_2_1),  # not new(theirs)
-    (1, f_1_2_1),  # new(theirs)
+    (1, f_1_2_1),  # any data
 )
 CONDITIONS_1 = (('never', 'terminal', cond_1_1),)
 
@@ -98,8 +96,8 @@ def iterate_1(r: _Runner) -> _Iteration:
     st = r.state
     mask = r.begin()  # new(x) of the inputs, frozen for the transition function
     stage: dict[str, Any] = {}
-    r.partial(CASES_1_1[mask], st, stage)  # f[right,c,exchange,1]: update mine
-    r.partial(CASES_1_2[mask], st, stage)  # f[right,c,exchange,2]: update memory
+    r.partial(CASES_1_1[0], st, stage)  # f[right,c,exchange,1]: update mine
+    r.partial(CASES_1_2[0], st, stage)  # f[right,c,exchange,2]: update memory
     r.commit(stage)  # memory and outputs of i + 1; new(x) cleared
     yield from r.send(('buf', 'mine'))
     r.increment()  # i := i + 1

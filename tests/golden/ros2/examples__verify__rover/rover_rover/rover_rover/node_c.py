@@ -308,58 +308,13 @@ def cond_7_1(st: State) -> bool:
 # ---------------------------------------------------------------- behaviour drive_to_site: P^B[rover,c,drive_to_site]
 
 CASES_1_1 = (  # drive_to_site: update drive_cmd
-    (16, f_1_1_1),  # not new(nav) and not new(mast) and not new(science) and not new(hazard)
-    (15, f_1_1_1),  # new(nav) and not new(mast) and not new(science) and not new(hazard)
-    (14, f_1_1_1),  # not new(nav) and new(mast) and not new(science) and not new(hazard)
-    (13, f_1_1_1),  # new(nav) and new(mast) and not new(science) and not new(hazard)
-    (12, f_1_1_1),  # not new(nav) and not new(mast) and new(science) and not new(hazard)
-    (11, f_1_1_1),  # new(nav) and not new(mast) and new(science) and not new(hazard)
-    (10, f_1_1_1),  # not new(nav) and new(mast) and new(science) and not new(hazard)
-    (9, f_1_1_1),  # new(nav) and new(mast) and new(science) and not new(hazard)
-    (8, f_1_1_1),  # not new(nav) and not new(mast) and not new(science) and new(hazard)
-    (7, f_1_1_1),  # new(nav) and not new(mast) and not new(science) and new(hazard)
-    (6, f_1_1_1),  # not new(nav) and new(mast) and not new(science) and new(hazard)
-    (5, f_1_1_1),  # new(nav) and new(mast) and not new(science) and new(hazard)
-    (4, f_1_1_1),  # not new(nav) and not new(mast) and new(science) and new(hazard)
-    (3, f_1_1_1),  # new(nav) and not new(mast) and new(science) and new(hazard)
-    (2, f_1_1_1),  # not new(nav) and new(mast) and new(science) and new(hazard)
-    (1, f_1_1_1),  # new(nav) and new(mast) and new(science) and new(hazard)
+    (1, f_1_1_1),  # any data
 )
 CASES_1_2 = (  # drive_to_site: update mast_cmd
-    (16, f_1_2_1),  # not new(nav) and not new(mast) and not new(science) and not new(hazard)
-    (15, f_1_2_1),  # new(nav) and not new(mast) and not new(science) and not new(hazard)
-    (14, f_1_2_1),  # not new(nav) and new(mast) and not new(science) and not new(hazard)
-    (13, f_1_2_1),  # new(nav) and new(mast) and not new(science) and not new(hazard)
-    (12, f_1_2_1),  # not new(nav) and not new(mast) and new(science) and not new(hazard)
-    (11, f_1_2_1),  # new(nav) and not new(mast) and new(science) and not new(hazard)
-    (10, f_1_2_1),  # not new(nav) and new(mast) and new(science) and not new(hazard)
-    (9, f_1_2_1),  # new(nav) and new(mast) and new(science) and not new(hazard)
-    (8, f_1_2_1),  # not new(nav) and not new(mast) and not new(science) and new(hazard)
-    (7, f_1_2_1),  # new(nav) and not new(mast) and not new(science) and new(hazard)
-    (6, f_1_2_1),  # not new(nav) and new(mast) and not new(science) and new(hazard)
-    (5, f_1_2_1),  # new(nav) and new(mast) and not new(science) and new(hazard)
-    (4, f_1_2_1),  # not new(nav) and not new(mast) and new(science) and new(hazard)
-    (3, f_1_2_1),  # new(nav) and not new(mast) and new(science) and new(hazard)
-    (2, f_1_2_1),  # not new(nav) and new(mast) and new(science) and new(hazard)
-    (1, f_1_2_1),  # new(nav) and new(mast) and new(science) and new(hazard)
+    (1, f_1_2_1),  # any data
 )
 CASES_1_3 = (  # drive_to_site: update memory
-    (16, f_1_3_1),  # not new(nav) and not new(mast) and not new(science) and not new(hazard)
-    (15, f_1_3_1),  # new(nav) and not new(mast) and not new(science) and not new(hazard)
-    (14, f_1_3_1),  # not new(nav) and new(mast) and not new(science) and not new(hazard)
-    (13, f_1_3_1),  # new(nav) and new(mast) and not new(science) and not new(hazard)
-    (12, f_1_3_1),  # not new(nav) and not new(mast) and new(science) and not new(hazard)
-    (11, f_1_3_1),  # new(nav) and not new(mast) and new(science) and not new(hazard)
-    (10, f_1_3_1),  # not new(nav) and new(mast) and new(science) and not new(hazard)
-    (9, f_1_3_1),  # new(nav) and new(mast) and new(science) and not new(hazard)
-    (8, f_1_3_1),  # not new(nav) and not new(mast) and not new(science) and new(hazard)
-    (7, f_1_3_1),  # new(nav) and not new(mast) and not new(science) and new(hazard)
-    (6, f_1_3_1),  # not new(nav) and new(mast) and not new(science) and new(hazard)
-    (5, f_1_3_1),  # new(nav) and new(mast) and not new(science) and new(hazard)
-    (4, f_1_3_1),  # not new(nav) and not new(mast) and new(science) and new(hazard)
-    (3, f_1_3_1),  # new(nav) and not new(mast) and new(science) and new(hazard)
-    (2, f_1_3_1),  # not new(nav) and new(mast) and new(science) and new(hazard)
-    (1, f_1_3_1),  # new(nav) and new(mast) and new(science) and new(hazard)
+    (1, f_1_3_1),  # any data
 )
 CONDITIONS_1 = (('arrived', 'terminal', cond_1_1), ('tilted', 'error', cond_1_2))
 
@@ -369,9 +324,9 @@ def iterate_1(r: _Runner) -> _Iteration:
     st = r.state
     mask = r.begin()  # new(x) of the inputs, frozen for the transition function
     stage: dict[str, Any] = {}
-    r.partial(CASES_1_1[mask], st, stage)  # f[rover,c,drive_to_site,1]: update drive_cmd
-    r.partial(CASES_1_2[mask], st, stage)  # f[rover,c,drive_to_site,2]: update mast_cmd
-    r.partial(CASES_1_3[mask], st, stage)  # f[rover,c,drive_to_site,3]: update memory
+    r.partial(CASES_1_1[0], st, stage)  # f[rover,c,drive_to_site,1]: update drive_cmd
+    r.partial(CASES_1_2[0], st, stage)  # f[rover,c,drive_to_site,2]: update mast_cmd
+    r.partial(CASES_1_3[0], st, stage)  # f[rover,c,drive_to_site,3]: update memory
     r.commit(stage)  # memory and outputs of i + 1; new(x) cleared
     yield from r.send(('seq', (('buf', 'drive_cmd'), ('buf', 'mast_cmd'))))
     r.increment()  # i := i + 1
@@ -390,58 +345,13 @@ def switch_1(st: State, conds: Mapping[str, bool]) -> str | None:
 # ---------------------------------------------------------------- behaviour deploy: P^B[rover,c,deploy]
 
 CASES_2_1 = (  # deploy: update drive_cmd
-    (16, f_2_1_1),  # not new(nav) and not new(mast) and not new(science) and not new(hazard)
-    (15, f_2_1_1),  # new(nav) and not new(mast) and not new(science) and not new(hazard)
-    (14, f_2_1_1),  # not new(nav) and new(mast) and not new(science) and not new(hazard)
-    (13, f_2_1_1),  # new(nav) and new(mast) and not new(science) and not new(hazard)
-    (12, f_2_1_1),  # not new(nav) and not new(mast) and new(science) and not new(hazard)
-    (11, f_2_1_1),  # new(nav) and not new(mast) and new(science) and not new(hazard)
-    (10, f_2_1_1),  # not new(nav) and new(mast) and new(science) and not new(hazard)
-    (9, f_2_1_1),  # new(nav) and new(mast) and new(science) and not new(hazard)
-    (8, f_2_1_1),  # not new(nav) and not new(mast) and not new(science) and new(hazard)
-    (7, f_2_1_1),  # new(nav) and not new(mast) and not new(science) and new(hazard)
-    (6, f_2_1_1),  # not new(nav) and new(mast) and not new(science) and new(hazard)
-    (5, f_2_1_1),  # new(nav) and new(mast) and not new(science) and new(hazard)
-    (4, f_2_1_1),  # not new(nav) and not new(mast) and new(science) and new(hazard)
-    (3, f_2_1_1),  # new(nav) and not new(mast) and new(science) and new(hazard)
-    (2, f_2_1_1),  # not new(nav) and new(mast) and new(science) and new(hazard)
-    (1, f_2_1_1),  # new(nav) and new(mast) and new(science) and new(hazard)
+    (1, f_2_1_1),  # any data
 )
 CASES_2_2 = (  # deploy: update mast_cmd
-    (16, f_2_2_1),  # not new(nav) and not new(mast) and not new(science) and not new(hazard)
-    (15, f_2_2_1),  # new(nav) and not new(mast) and not new(science) and not new(hazard)
-    (14, f_2_2_1),  # not new(nav) and new(mast) and not new(science) and not new(hazard)
-    (13, f_2_2_1),  # new(nav) and new(mast) and not new(science) and not new(hazard)
-    (12, f_2_2_1),  # not new(nav) and not new(mast) and new(science) and not new(hazard)
-    (11, f_2_2_1),  # new(nav) and not new(mast) and new(science) and not new(hazard)
-    (10, f_2_2_1),  # not new(nav) and new(mast) and new(science) and not new(hazard)
-    (9, f_2_2_1),  # new(nav) and new(mast) and new(science) and not new(hazard)
-    (8, f_2_2_1),  # not new(nav) and not new(mast) and not new(science) and new(hazard)
-    (7, f_2_2_1),  # new(nav) and not new(mast) and not new(science) and new(hazard)
-    (6, f_2_2_1),  # not new(nav) and new(mast) and not new(science) and new(hazard)
-    (5, f_2_2_1),  # new(nav) and new(mast) and not new(science) and new(hazard)
-    (4, f_2_2_1),  # not new(nav) and not new(mast) and new(science) and new(hazard)
-    (3, f_2_2_1),  # new(nav) and not new(mast) and new(science) and new(hazard)
-    (2, f_2_2_1),  # not new(nav) and new(mast) and new(science) and new(hazard)
-    (1, f_2_2_1),  # new(nav) and new(mast) and new(science) and new(hazard)
+    (1, f_2_2_1),  # any data
 )
 CASES_2_3 = (  # deploy: update memory
-    (16, f_2_3_1),  # not new(nav) and not new(mast) and not new(science) and not new(hazard)
-    (15, f_2_3_1),  # new(nav) and not new(mast) and not new(science) and not new(hazard)
-    (14, f_2_3_1),  # not new(nav) and new(mast) and not new(science) and not new(hazard)
-    (13, f_2_3_1),  # new(nav) and new(mast) and not new(science) and not new(hazard)
-    (12, f_2_3_1),  # not new(nav) and not new(mast) and new(science) and not new(hazard)
-    (11, f_2_3_1),  # new(nav) and not new(mast) and new(science) and not new(hazard)
-    (10, f_2_3_1),  # not new(nav) and new(mast) and new(science) and not new(hazard)
-    (9, f_2_3_1),  # new(nav) and new(mast) and new(science) and not new(hazard)
-    (8, f_2_3_1),  # not new(nav) and not new(mast) and not new(science) and new(hazard)
-    (7, f_2_3_1),  # new(nav) and not new(mast) and not new(science) and new(hazard)
-    (6, f_2_3_1),  # not new(nav) and new(mast) and not new(science) and new(hazard)
-    (5, f_2_3_1),  # new(nav) and new(mast) and not new(science) and new(hazard)
-    (4, f_2_3_1),  # not new(nav) and not new(mast) and new(science) and new(hazard)
-    (3, f_2_3_1),  # new(nav) and not new(mast) and new(science) and new(hazard)
-    (2, f_2_3_1),  # not new(nav) and new(mast) and new(science) and new(hazard)
-    (1, f_2_3_1),  # new(nav) and new(mast) and new(science) and new(hazard)
+    (1, f_2_3_1),  # any data
 )
 CONDITIONS_2 = (('ready', 'terminal', cond_2_1),)
 
@@ -451,9 +361,9 @@ def iterate_2(r: _Runner) -> _Iteration:
     st = r.state
     mask = r.begin()  # new(x) of the inputs, frozen for the transition function
     stage: dict[str, Any] = {}
-    r.partial(CASES_2_1[mask], st, stage)  # f[rover,c,deploy,1]: update drive_cmd
-    r.partial(CASES_2_2[mask], st, stage)  # f[rover,c,deploy,2]: update mast_cmd
-    r.partial(CASES_2_3[mask], st, stage)  # f[rover,c,deploy,3]: update memory
+    r.partial(CASES_2_1[0], st, stage)  # f[rover,c,deploy,1]: update drive_cmd
+    r.partial(CASES_2_2[0], st, stage)  # f[rover,c,deploy,2]: update mast_cmd
+    r.partial(CASES_2_3[0], st, stage)  # f[rover,c,deploy,3]: update memory
     r.commit(stage)  # memory and outputs of i + 1; new(x) cleared
     yield from r.send(('seq', (('buf', 'drive_cmd'), ('buf', 'mast_cmd'))))
     r.increment()  # i := i + 1
@@ -472,58 +382,14 @@ def switch_2(st: State, conds: Mapping[str, bool]) -> str | None:
 # ---------------------------------------------------------------- behaviour sample: P^B[rover,c,sample]
 
 CASES_3_1 = (  # sample: update drive_cmd
-    (16, None),  # not new(nav) and not new(mast) and not new(science) and not new(hazard)
-    (15, None),  # new(nav) and not new(mast) and not new(science) and not new(hazard)
-    (14, None),  # not new(nav) and new(mast) and not new(science) and not new(hazard)
-    (13, None),  # new(nav) and new(mast) and not new(science) and not new(hazard)
-    (12, None),  # not new(nav) and not new(mast) and new(science) and not new(hazard)
-    (11, None),  # new(nav) and not new(mast) and new(science) and not new(hazard)
-    (10, None),  # not new(nav) and new(mast) and new(science) and not new(hazard)
-    (9, None),  # new(nav) and new(mast) and new(science) and not new(hazard)
-    (8, None),  # not new(nav) and not new(mast) and not new(science) and new(hazard)
-    (7, None),  # new(nav) and not new(mast) and not new(science) and new(hazard)
-    (6, None),  # not new(nav) and new(mast) and not new(science) and new(hazard)
-    (5, None),  # new(nav) and new(mast) and not new(science) and new(hazard)
-    (4, None),  # not new(nav) and not new(mast) and new(science) and new(hazard)
-    (3, None),  # new(nav) and not new(mast) and new(science) and new(hazard)
-    (2, None),  # not new(nav) and new(mast) and new(science) and new(hazard)
-    (1, None),  # new(nav) and new(mast) and new(science) and new(hazard)
+    (1, None),  # any data
 )
 CASES_3_2 = (  # sample: update mast_cmd
-    (16, f_3_2_1),  # not new(nav) and not new(mast) and not new(science) and not new(hazard)
-    (15, f_3_2_1),  # new(nav) and not new(mast) and not new(science) and not new(hazard)
-    (14, f_3_2_1),  # not new(nav) and new(mast) and not new(science) and not new(hazard)
-    (13, f_3_2_1),  # new(nav) and new(mast) and not new(science) and not new(hazard)
-    (12, f_3_2_1),  # not new(nav) and not new(mast) and new(science) and not new(hazard)
-    (11, f_3_2_1),  # new(nav) and not new(mast) and new(science) and not new(hazard)
-    (10, f_3_2_1),  # not new(nav) and new(mast) and new(science) and not new(hazard)
-    (9, f_3_2_1),  # new(nav) and new(mast) and new(science) and not new(hazard)
-    (8, f_3_2_1),  # not new(nav) and not new(mast) and not new(science) and new(hazard)
-    (7, f_3_2_1),  # new(nav) and not new(mast) and not new(science) and new(hazard)
-    (6, f_3_2_1),  # not new(nav) and new(mast) and not new(science) and new(hazard)
-    (5, f_3_2_1),  # new(nav) and new(mast) and not new(science) and new(hazard)
-    (4, f_3_2_1),  # not new(nav) and not new(mast) and new(science) and new(hazard)
-    (3, f_3_2_1),  # new(nav) and not new(mast) and new(science) and new(hazard)
-    (2, f_3_2_1),  # not new(nav) and new(mast) and new(science) and new(hazard)
-    (1, f_3_2_1),  # new(nav) and new(mast) and new(science) and new(hazard)
+    (1, f_3_2_1),  # any data
 )
 CASES_3_3 = (  # sample: update memory
-    (16, f_3_3_2),  # not new(nav) and not new(mast) and not new(science) and not new(hazard)
-    (15, f_3_3_2),  # new(nav) and not new(mast) and not new(science) and not new(hazard)
-    (14, f_3_3_2),  # not new(nav) and new(mast) and not new(science) and not new(hazard)
-    (13, f_3_3_2),  # new(nav) and new(mast) and not new(science) and not new(hazard)
-    (12, f_3_3_1),  # not new(nav) and not new(mast) and new(science) and not new(hazard)
-    (11, f_3_3_1),  # new(nav) and not new(mast) and new(science) and not new(hazard)
-    (10, f_3_3_1),  # not new(nav) and new(mast) and new(science) and not new(hazard)
-    (9, f_3_3_1),  # new(nav) and new(mast) and new(science) and not new(hazard)
-    (8, f_3_3_2),  # not new(nav) and not new(mast) and not new(science) and new(hazard)
-    (7, f_3_3_2),  # new(nav) and not new(mast) and not new(science) and new(hazard)
-    (6, f_3_3_2),  # not new(nav) and new(mast) and not new(science) and new(hazard)
-    (5, f_3_3_2),  # new(nav) and new(mast) and not new(science) and new(hazard)
-    (4, f_3_3_1),  # not new(nav) and not new(mast) and new(science) and new(hazard)
-    (3, f_3_3_1),  # new(nav) and not new(mast) and new(science) and new(hazard)
-    (2, f_3_3_1),  # not new(nav) and new(mast) and new(science) and new(hazard)
-    (1, f_3_3_1),  # new(nav) and new(mast) and new(science) and new(hazard)
+    (2, f_3_3_2),  # not new(science)
+    (1, f_3_3_1),  # new(science)
 )
 CONDITIONS_3 = (('enough', 'terminal', cond_3_1), ('exhausted', 'error', cond_3_2))
 
@@ -533,9 +399,9 @@ def iterate_3(r: _Runner) -> _Iteration:
     st = r.state
     mask = r.begin()  # new(x) of the inputs, frozen for the transition function
     stage: dict[str, Any] = {}
-    r.partial(CASES_3_1[mask], st, stage)  # f[rover,c,sample,1]: update drive_cmd
-    r.partial(CASES_3_2[mask], st, stage)  # f[rover,c,sample,2]: update mast_cmd
-    r.partial(CASES_3_3[mask], st, stage)  # f[rover,c,sample,3]: update memory
+    r.partial(CASES_3_1[0], st, stage)  # f[rover,c,sample,1]: update drive_cmd
+    r.partial(CASES_3_2[0], st, stage)  # f[rover,c,sample,2]: update mast_cmd
+    r.partial(CASES_3_3[(mask >> 2 & 1)], st, stage)  # f[rover,c,sample,3]: update memory
     r.commit(stage)  # memory and outputs of i + 1; new(x) cleared
     yield from r.send(('seq', (('buf', 'drive_cmd'), ('buf', 'mast_cmd'))))
     r.increment()  # i := i + 1
@@ -551,58 +417,13 @@ def switch_3(st: State, conds: Mapping[str, bool]) -> str | None:
 # ---------------------------------------------------------------- behaviour stow: P^B[rover,c,stow]
 
 CASES_4_1 = (  # stow: update drive_cmd
-    (16, None),  # not new(nav) and not new(mast) and not new(science) and not new(hazard)
-    (15, None),  # new(nav) and not new(mast) and not new(science) and not new(hazard)
-    (14, None),  # not new(nav) and new(mast) and not new(science) and not new(hazard)
-    (13, None),  # new(nav) and new(mast) and not new(science) and not new(hazard)
-    (12, None),  # not new(nav) and not new(mast) and new(science) and not new(hazard)
-    (11, None),  # new(nav) and not new(mast) and new(science) and not new(hazard)
-    (10, None),  # not new(nav) and new(mast) and new(science) and not new(hazard)
-    (9, None),  # new(nav) and new(mast) and new(science) and not new(hazard)
-    (8, None),  # not new(nav) and not new(mast) and not new(science) and new(hazard)
-    (7, None),  # new(nav) and not new(mast) and not new(science) and new(hazard)
-    (6, None),  # not new(nav) and new(mast) and not new(science) and new(hazard)
-    (5, None),  # new(nav) and new(mast) and not new(science) and new(hazard)
-    (4, None),  # not new(nav) and not new(mast) and new(science) and new(hazard)
-    (3, None),  # new(nav) and not new(mast) and new(science) and new(hazard)
-    (2, None),  # not new(nav) and new(mast) and new(science) and new(hazard)
-    (1, None),  # new(nav) and new(mast) and new(science) and new(hazard)
+    (1, None),  # any data
 )
 CASES_4_2 = (  # stow: update mast_cmd
-    (16, f_4_2_1),  # not new(nav) and not new(mast) and not new(science) and not new(hazard)
-    (15, f_4_2_1),  # new(nav) and not new(mast) and not new(science) and not new(hazard)
-    (14, f_4_2_1),  # not new(nav) and new(mast) and not new(science) and not new(hazard)
-    (13, f_4_2_1),  # new(nav) and new(mast) and not new(science) and not new(hazard)
-    (12, f_4_2_1),  # not new(nav) and not new(mast) and new(science) and not new(hazard)
-    (11, f_4_2_1),  # new(nav) and not new(mast) and new(science) and not new(hazard)
-    (10, f_4_2_1),  # not new(nav) and new(mast) and new(science) and not new(hazard)
-    (9, f_4_2_1),  # new(nav) and new(mast) and new(science) and not new(hazard)
-    (8, f_4_2_1),  # not new(nav) and not new(mast) and not new(science) and new(hazard)
-    (7, f_4_2_1),  # new(nav) and not new(mast) and not new(science) and new(hazard)
-    (6, f_4_2_1),  # not new(nav) and new(mast) and not new(science) and new(hazard)
-    (5, f_4_2_1),  # new(nav) and new(mast) and not new(science) and new(hazard)
-    (4, f_4_2_1),  # not new(nav) and not new(mast) and new(science) and new(hazard)
-    (3, f_4_2_1),  # new(nav) and not new(mast) and new(science) and new(hazard)
-    (2, f_4_2_1),  # not new(nav) and new(mast) and new(science) and new(hazard)
-    (1, f_4_2_1),  # new(nav) and new(mast) and new(science) and new(hazard)
+    (1, f_4_2_1),  # any data
 )
 CASES_4_3 = (  # stow: update memory
-    (16, f_4_3_1),  # not new(nav) and not new(mast) and not new(science) and not new(hazard)
-    (15, f_4_3_1),  # new(nav) and not new(mast) and not new(science) and not new(hazard)
-    (14, f_4_3_1),  # not new(nav) and new(mast) and not new(science) and not new(hazard)
-    (13, f_4_3_1),  # new(nav) and new(mast) and not new(science) and not new(hazard)
-    (12, f_4_3_1),  # not new(nav) and not new(mast) and new(science) and not new(hazard)
-    (11, f_4_3_1),  # new(nav) and not new(mast) and new(science) and not new(hazard)
-    (10, f_4_3_1),  # not new(nav) and new(mast) and new(science) and not new(hazard)
-    (9, f_4_3_1),  # new(nav) and new(mast) and new(science) and not new(hazard)
-    (8, f_4_3_1),  # not new(nav) and not new(mast) and not new(science) and new(hazard)
-    (7, f_4_3_1),  # new(nav) and not new(mast) and not new(science) and new(hazard)
-    (6, f_4_3_1),  # not new(nav) and new(mast) and not new(science) and new(hazard)
-    (5, f_4_3_1),  # new(nav) and new(mast) and not new(science) and new(hazard)
-    (4, f_4_3_1),  # not new(nav) and not new(mast) and new(science) and new(hazard)
-    (3, f_4_3_1),  # new(nav) and not new(mast) and new(science) and new(hazard)
-    (2, f_4_3_1),  # not new(nav) and new(mast) and new(science) and new(hazard)
-    (1, f_4_3_1),  # new(nav) and new(mast) and new(science) and new(hazard)
+    (1, f_4_3_1),  # any data
 )
 CONDITIONS_4 = (('folded', 'terminal', cond_4_1),)
 
@@ -612,9 +433,9 @@ def iterate_4(r: _Runner) -> _Iteration:
     st = r.state
     mask = r.begin()  # new(x) of the inputs, frozen for the transition function
     stage: dict[str, Any] = {}
-    r.partial(CASES_4_1[mask], st, stage)  # f[rover,c,stow,1]: update drive_cmd
-    r.partial(CASES_4_2[mask], st, stage)  # f[rover,c,stow,2]: update mast_cmd
-    r.partial(CASES_4_3[mask], st, stage)  # f[rover,c,stow,3]: update memory
+    r.partial(CASES_4_1[0], st, stage)  # f[rover,c,stow,1]: update drive_cmd
+    r.partial(CASES_4_2[0], st, stage)  # f[rover,c,stow,2]: update mast_cmd
+    r.partial(CASES_4_3[0], st, stage)  # f[rover,c,stow,3]: update memory
     r.commit(stage)  # memory and outputs of i + 1; new(x) cleared
     yield from r.send(('seq', (('buf', 'drive_cmd'), ('buf', 'mast_cmd'))))
     r.increment()  # i := i + 1
@@ -635,58 +456,13 @@ def switch_4(st: State, conds: Mapping[str, bool]) -> str | None:
 # ---------------------------------------------------------------- behaviour return_home: P^B[rover,c,return_home]
 
 CASES_5_1 = (  # return_home: update drive_cmd
-    (16, f_5_1_1),  # not new(nav) and not new(mast) and not new(science) and not new(hazard)
-    (15, f_5_1_1),  # new(nav) and not new(mast) and not new(science) and not new(hazard)
-    (14, f_5_1_1),  # not new(nav) and new(mast) and not new(science) and not new(hazard)
-    (13, f_5_1_1),  # new(nav) and new(mast) and not new(science) and not new(hazard)
-    (12, f_5_1_1),  # not new(nav) and not new(mast) and new(science) and not new(hazard)
-    (11, f_5_1_1),  # new(nav) and not new(mast) and new(science) and not new(hazard)
-    (10, f_5_1_1),  # not new(nav) and new(mast) and new(science) and not new(hazard)
-    (9, f_5_1_1),  # new(nav) and new(mast) and new(science) and not new(hazard)
-    (8, f_5_1_1),  # not new(nav) and not new(mast) and not new(science) and new(hazard)
-    (7, f_5_1_1),  # new(nav) and not new(mast) and not new(science) and new(hazard)
-    (6, f_5_1_1),  # not new(nav) and new(mast) and not new(science) and new(hazard)
-    (5, f_5_1_1),  # new(nav) and new(mast) and not new(science) and new(hazard)
-    (4, f_5_1_1),  # not new(nav) and not new(mast) and new(science) and new(hazard)
-    (3, f_5_1_1),  # new(nav) and not new(mast) and new(science) and new(hazard)
-    (2, f_5_1_1),  # not new(nav) and new(mast) and new(science) and new(hazard)
-    (1, f_5_1_1),  # new(nav) and new(mast) and new(science) and new(hazard)
+    (1, f_5_1_1),  # any data
 )
 CASES_5_2 = (  # return_home: update mast_cmd
-    (16, f_5_2_1),  # not new(nav) and not new(mast) and not new(science) and not new(hazard)
-    (15, f_5_2_1),  # new(nav) and not new(mast) and not new(science) and not new(hazard)
-    (14, f_5_2_1),  # not new(nav) and new(mast) and not new(science) and not new(hazard)
-    (13, f_5_2_1),  # new(nav) and new(mast) and not new(science) and not new(hazard)
-    (12, f_5_2_1),  # not new(nav) and not new(mast) and new(science) and not new(hazard)
-    (11, f_5_2_1),  # new(nav) and not new(mast) and new(science) and not new(hazard)
-    (10, f_5_2_1),  # not new(nav) and new(mast) and new(science) and not new(hazard)
-    (9, f_5_2_1),  # new(nav) and new(mast) and new(science) and not new(hazard)
-    (8, f_5_2_1),  # not new(nav) and not new(mast) and not new(science) and new(hazard)
-    (7, f_5_2_1),  # new(nav) and not new(mast) and not new(science) and new(hazard)
-    (6, f_5_2_1),  # not new(nav) and new(mast) and not new(science) and new(hazard)
-    (5, f_5_2_1),  # new(nav) and new(mast) and not new(science) and new(hazard)
-    (4, f_5_2_1),  # not new(nav) and not new(mast) and new(science) and new(hazard)
-    (3, f_5_2_1),  # new(nav) and not new(mast) and new(science) and new(hazard)
-    (2, f_5_2_1),  # not new(nav) and new(mast) and new(science) and new(hazard)
-    (1, f_5_2_1),  # new(nav) and new(mast) and new(science) and new(hazard)
+    (1, f_5_2_1),  # any data
 )
 CASES_5_3 = (  # return_home: update memory
-    (16, f_5_3_1),  # not new(nav) and not new(mast) and not new(science) and not new(hazard)
-    (15, f_5_3_1),  # new(nav) and not new(mast) and not new(science) and not new(hazard)
-    (14, f_5_3_1),  # not new(nav) and new(mast) and not new(science) and not new(hazard)
-    (13, f_5_3_1),  # new(nav) and new(mast) and not new(science) and not new(hazard)
-    (12, f_5_3_1),  # not new(nav) and not new(mast) and new(science) and not new(hazard)
-    (11, f_5_3_1),  # new(nav) and not new(mast) and new(science) and not new(hazard)
-    (10, f_5_3_1),  # not new(nav) and new(mast) and new(science) and not new(hazard)
-    (9, f_5_3_1),  # new(nav) and new(mast) and new(science) and not new(hazard)
-    (8, f_5_3_1),  # not new(nav) and not new(mast) and not new(science) and new(hazard)
-    (7, f_5_3_1),  # new(nav) and not new(mast) and not new(science) and new(hazard)
-    (6, f_5_3_1),  # not new(nav) and new(mast) and not new(science) and new(hazard)
-    (5, f_5_3_1),  # new(nav) and new(mast) and not new(science) and new(hazard)
-    (4, f_5_3_1),  # not new(nav) and not new(mast) and new(science) and new(hazard)
-    (3, f_5_3_1),  # new(nav) and not new(mast) and new(science) and new(hazard)
-    (2, f_5_3_1),  # not new(nav) and new(mast) and new(science) and new(hazard)
-    (1, f_5_3_1),  # new(nav) and new(mast) and new(science) and new(hazard)
+    (1, f_5_3_1),  # any data
 )
 CONDITIONS_5 = (('home_reached', 'terminal', cond_5_1), ('tilted', 'error', cond_5_2))
 
@@ -696,9 +472,9 @@ def iterate_5(r: _Runner) -> _Iteration:
     st = r.state
     mask = r.begin()  # new(x) of the inputs, frozen for the transition function
     stage: dict[str, Any] = {}
-    r.partial(CASES_5_1[mask], st, stage)  # f[rover,c,return_home,1]: update drive_cmd
-    r.partial(CASES_5_2[mask], st, stage)  # f[rover,c,return_home,2]: update mast_cmd
-    r.partial(CASES_5_3[mask], st, stage)  # f[rover,c,return_home,3]: update memory
+    r.partial(CASES_5_1[0], st, stage)  # f[rover,c,return_home,1]: update drive_cmd
+    r.partial(CASES_5_2[0], st, stage)  # f[rover,c,return_home,2]: update mast_cmd
+    r.partial(CASES_5_3[0], st, stage)  # f[rover,c,return_home,3]: update memory
     r.commit(stage)  # memory and outputs of i + 1; new(x) cleared
     yield from r.send(('seq', (('buf', 'drive_cmd'), ('buf', 'mast_cmd'))))
     r.increment()  # i := i + 1
@@ -717,58 +493,14 @@ def switch_5(st: State, conds: Mapping[str, bool]) -> str | None:
 # ---------------------------------------------------------------- behaviour hazard_stop: P^B[rover,c,hazard_stop]
 
 CASES_6_1 = (  # hazard_stop: update drive_cmd
-    (16, f_6_1_1),  # not new(nav) and not new(mast) and not new(science) and not new(hazard)
-    (15, f_6_1_1),  # new(nav) and not new(mast) and not new(science) and not new(hazard)
-    (14, f_6_1_1),  # not new(nav) and new(mast) and not new(science) and not new(hazard)
-    (13, f_6_1_1),  # new(nav) and new(mast) and not new(science) and not new(hazard)
-    (12, f_6_1_1),  # not new(nav) and not new(mast) and new(science) and not new(hazard)
-    (11, f_6_1_1),  # new(nav) and not new(mast) and new(science) and not new(hazard)
-    (10, f_6_1_1),  # not new(nav) and new(mast) and new(science) and not new(hazard)
-    (9, f_6_1_1),  # new(nav) and new(mast) and new(science) and not new(hazard)
-    (8, f_6_1_1),  # not new(nav) and not new(mast) and not new(science) and new(hazard)
-    (7, f_6_1_1),  # new(nav) and not new(mast) and not new(science) and new(hazard)
-    (6, f_6_1_1),  # not new(nav) and new(mast) and not new(science) and new(hazard)
-    (5, f_6_1_1),  # new(nav) and new(mast) and not new(science) and new(hazard)
-    (4, f_6_1_1),  # not new(nav) and not new(mast) and new(science) and new(hazard)
-    (3, f_6_1_1),  # new(nav) and not new(mast) and new(science) and new(hazard)
-    (2, f_6_1_1),  # not new(nav) and new(mast) and new(science) and new(hazard)
-    (1, f_6_1_1),  # new(nav) and new(mast) and new(science) and new(hazard)
+    (1, f_6_1_1),  # any data
 )
 CASES_6_2 = (  # hazard_stop: update mast_cmd
-    (16, None),  # not new(nav) and not new(mast) and not new(science) and not new(hazard)
-    (15, None),  # new(nav) and not new(mast) and not new(science) and not new(hazard)
-    (14, None),  # not new(nav) and new(mast) and not new(science) and not new(hazard)
-    (13, None),  # new(nav) and new(mast) and not new(science) and not new(hazard)
-    (12, None),  # not new(nav) and not new(mast) and new(science) and not new(hazard)
-    (11, None),  # new(nav) and not new(mast) and new(science) and not new(hazard)
-    (10, None),  # not new(nav) and new(mast) and new(science) and not new(hazard)
-    (9, None),  # new(nav) and new(mast) and new(science) and not new(hazard)
-    (8, None),  # not new(nav) and not new(mast) and not new(science) and new(hazard)
-    (7, None),  # new(nav) and not new(mast) and not new(science) and new(hazard)
-    (6, None),  # not new(nav) and new(mast) and not new(science) and new(hazard)
-    (5, None),  # new(nav) and new(mast) and not new(science) and new(hazard)
-    (4, None),  # not new(nav) and not new(mast) and new(science) and new(hazard)
-    (3, None),  # new(nav) and not new(mast) and new(science) and new(hazard)
-    (2, None),  # not new(nav) and new(mast) and new(science) and new(hazard)
-    (1, None),  # new(nav) and new(mast) and new(science) and new(hazard)
+    (1, None),  # any data
 )
 CASES_6_3 = (  # hazard_stop: update memory
-    (16, f_6_3_2),  # not new(nav) and not new(mast) and not new(science) and not new(hazard)
-    (15, f_6_3_2),  # new(nav) and not new(mast) and not new(science) and not new(hazard)
-    (14, f_6_3_2),  # not new(nav) and new(mast) and not new(science) and not new(hazard)
-    (13, f_6_3_2),  # new(nav) and new(mast) and not new(science) and not new(hazard)
-    (12, f_6_3_2),  # not new(nav) and not new(mast) and new(science) and not new(hazard)
-    (11, f_6_3_2),  # new(nav) and not new(mast) and new(science) and not new(hazard)
-    (10, f_6_3_2),  # not new(nav) and new(mast) and new(science) and not new(hazard)
-    (9, f_6_3_2),  # new(nav) and new(mast) and new(science) and not new(hazard)
-    (8, f_6_3_1),  # not new(nav) and not new(mast) and not new(science) and new(hazard)
-    (7, f_6_3_1),  # new(nav) and not new(mast) and not new(science) and new(hazard)
-    (6, f_6_3_1),  # not new(nav) and new(mast) and not new(science) and new(hazard)
-    (5, f_6_3_1),  # new(nav) and new(mast) and not new(science) and new(hazard)
-    (4, f_6_3_1),  # not new(nav) and not new(mast) and new(science) and new(hazard)
-    (3, f_6_3_1),  # new(nav) and not new(mast) and new(science) and new(hazard)
-    (2, f_6_3_1),  # not new(nav) and new(mast) and new(science) and new(hazard)
-    (1, f_6_3_1),  # new(nav) and new(mast) and new(science) and new(hazard)
+    (2, f_6_3_2),  # not new(hazard)
+    (1, f_6_3_1),  # new(hazard)
 )
 CONDITIONS_6 = (('clear', 'terminal', cond_6_1),)
 
@@ -778,9 +510,9 @@ def iterate_6(r: _Runner) -> _Iteration:
     st = r.state
     mask = r.begin()  # new(x) of the inputs, frozen for the transition function
     stage: dict[str, Any] = {}
-    r.partial(CASES_6_1[mask], st, stage)  # f[rover,c,hazard_stop,1]: update drive_cmd
-    r.partial(CASES_6_2[mask], st, stage)  # f[rover,c,hazard_stop,2]: update mast_cmd
-    r.partial(CASES_6_3[mask], st, stage)  # f[rover,c,hazard_stop,3]: update memory
+    r.partial(CASES_6_1[0], st, stage)  # f[rover,c,hazard_stop,1]: update drive_cmd
+    r.partial(CASES_6_2[0], st, stage)  # f[rover,c,hazard_stop,2]: update mast_cmd
+    r.partial(CASES_6_3[(mask >> 3 & 1)], st, stage)  # f[rover,c,hazard_stop,3]: update memory
     r.commit(stage)  # memory and outputs of i + 1; new(x) cleared
     yield from r.send(('seq', (('buf', 'drive_cmd'), ('buf', 'mast_cmd'))))
     r.increment()  # i := i + 1
@@ -801,58 +533,13 @@ def switch_6(st: State, conds: Mapping[str, bool]) -> str | None:
 # ---------------------------------------------------------------- behaviour park: P^B[rover,c,park]
 
 CASES_7_1 = (  # park: update drive_cmd
-    (16, f_7_1_1),  # not new(nav) and not new(mast) and not new(science) and not new(hazard)
-    (15, f_7_1_1),  # new(nav) and not new(mast) and not new(science) and not new(hazard)
-    (14, f_7_1_1),  # not new(nav) and new(mast) and not new(science) and not new(hazard)
-    (13, f_7_1_1),  # new(nav) and new(mast) and not new(science) and not new(hazard)
-    (12, f_7_1_1),  # not new(nav) and not new(mast) and new(science) and not new(hazard)
-    (11, f_7_1_1),  # new(nav) and not new(mast) and new(science) and not new(hazard)
-    (10, f_7_1_1),  # not new(nav) and new(mast) and new(science) and not new(hazard)
-    (9, f_7_1_1),  # new(nav) and new(mast) and new(science) and not new(hazard)
-    (8, f_7_1_1),  # not new(nav) and not new(mast) and not new(science) and new(hazard)
-    (7, f_7_1_1),  # new(nav) and not new(mast) and not new(science) and new(hazard)
-    (6, f_7_1_1),  # not new(nav) and new(mast) and not new(science) and new(hazard)
-    (5, f_7_1_1),  # new(nav) and new(mast) and not new(science) and new(hazard)
-    (4, f_7_1_1),  # not new(nav) and not new(mast) and new(science) and new(hazard)
-    (3, f_7_1_1),  # new(nav) and not new(mast) and new(science) and new(hazard)
-    (2, f_7_1_1),  # not new(nav) and new(mast) and new(science) and new(hazard)
-    (1, f_7_1_1),  # new(nav) and new(mast) and new(science) and new(hazard)
+    (1, f_7_1_1),  # any data
 )
 CASES_7_2 = (  # park: update mast_cmd
-    (16, f_7_2_1),  # not new(nav) and not new(mast) and not new(science) and not new(hazard)
-    (15, f_7_2_1),  # new(nav) and not new(mast) and not new(science) and not new(hazard)
-    (14, f_7_2_1),  # not new(nav) and new(mast) and not new(science) and not new(hazard)
-    (13, f_7_2_1),  # new(nav) and new(mast) and not new(science) and not new(hazard)
-    (12, f_7_2_1),  # not new(nav) and not new(mast) and new(science) and not new(hazard)
-    (11, f_7_2_1),  # new(nav) and not new(mast) and new(science) and not new(hazard)
-    (10, f_7_2_1),  # not new(nav) and new(mast) and new(science) and not new(hazard)
-    (9, f_7_2_1),  # new(nav) and new(mast) and new(science) and not new(hazard)
-    (8, f_7_2_1),  # not new(nav) and not new(mast) and not new(science) and new(hazard)
-    (7, f_7_2_1),  # new(nav) and not new(mast) and not new(science) and new(hazard)
-    (6, f_7_2_1),  # not new(nav) and new(mast) and not new(science) and new(hazard)
-    (5, f_7_2_1),  # new(nav) and new(mast) and not new(science) and new(hazard)
-    (4, f_7_2_1),  # not new(nav) and not new(mast) and new(science) and new(hazard)
-    (3, f_7_2_1),  # new(nav) and not new(mast) and new(science) and new(hazard)
-    (2, f_7_2_1),  # not new(nav) and new(mast) and new(science) and new(hazard)
-    (1, f_7_2_1),  # new(nav) and new(mast) and new(science) and new(hazard)
+    (1, f_7_2_1),  # any data
 )
 CASES_7_3 = (  # park: update memory
-    (16, None),  # not new(nav) and not new(mast) and not new(science) and not new(hazard)
-    (15, None),  # new(nav) and not new(mast) and not new(science) and not new(hazard)
-    (14, None),  # not new(nav) and new(mast) and not new(science) and not new(hazard)
-    (13, None),  # new(nav) and new(mast) and not new(science) and not new(hazard)
-    (12, None),  # not new(nav) and not new(mast) and new(science) and not new(hazard)
-    (11, None),  # new(nav) and not new(mast) and new(science) and not new(hazard)
-    (10, None),  # not new(nav) and new(mast) and new(science) and not new(hazard)
-    (9, None),  # new(nav) and new(mast) and new(science) and not new(hazard)
-    (8, None),  # not new(nav) and not new(mast) and not new(science) and new(hazard)
-    (7, None),  # new(nav) and not new(mast) and not new(science) and new(hazard)
-    (6, None),  # not new(nav) and new(mast) and not new(science) and new(hazard)
-    (5, None),  # new(nav) and new(mast) and not new(science) and new(hazard)
-    (4, None),  # not new(nav) and not new(mast) and new(science) and new(hazard)
-    (3, None),  # new(nav) and not new(mast) and new(science) and new(hazard)
-    (2, None),  # not new(nav) and new(mast) and new(science) and new(hazard)
-    (1, None),  # new(nav) and new(mast) and new(science) and new(hazard)
+    (1, None),  # any data
 )
 CONDITIONS_7 = (('never', 'terminal', cond_7_1),)
 
@@ -862,9 +549,9 @@ def iterate_7(r: _Runner) -> _Iteration:
     st = r.state
     mask = r.begin()  # new(x) of the inputs, frozen for the transition function
     stage: dict[str, Any] = {}
-    r.partial(CASES_7_1[mask], st, stage)  # f[rover,c,park,1]: update drive_cmd
-    r.partial(CASES_7_2[mask], st, stage)  # f[rover,c,park,2]: update mast_cmd
-    r.partial(CASES_7_3[mask], st, stage)  # f[rover,c,park,3]: update memory
+    r.partial(CASES_7_1[0], st, stage)  # f[rover,c,park,1]: update drive_cmd
+    r.partial(CASES_7_2[0], st, stage)  # f[rover,c,park,2]: update mast_cmd
+    r.partial(CASES_7_3[0], st, stage)  # f[rover,c,park,3]: update memory
     r.commit(stage)  # memory and outputs of i + 1; new(x) cleared
     yield from r.send(('seq', (('buf', 'drive_cmd'), ('buf', 'mast_cmd'))))
     r.increment()  # i := i + 1

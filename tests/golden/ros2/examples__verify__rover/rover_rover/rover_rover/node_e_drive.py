@@ -95,22 +95,14 @@ def cond_1_1(st: State) -> bool:
 # ---------------------------------------------------------------- behaviour pursue: P^B[rover,drive,pursue]
 
 CASES_1_1 = (  # pursue: update track
-    (4, f_1_1_1),  # not new(drive_cmd) and not new(odometry)
-    (3, f_1_1_1),  # new(drive_cmd) and not new(odometry)
-    (2, f_1_1_1),  # not new(drive_cmd) and new(odometry)
-    (1, f_1_1_1),  # new(drive_cmd) and new(odometry)
+    (1, f_1_1_1),  # any data
 )
 CASES_1_2 = (  # pursue: update nav
-    (4, None),  # not new(drive_cmd) and not new(odometry)
-    (3, None),  # new(drive_cmd) and not new(odometry)
-    (2, f_1_2_1),  # not new(drive_cmd) and new(odometry)
-    (1, f_1_2_1),  # new(drive_cmd) and new(odometry)
+    (2, None),  # not new(odometry)
+    (1, f_1_2_1),  # new(odometry)
 )
 CASES_1_3 = (  # pursue: update memory
-    (4, None),  # not new(drive_cmd) and not new(odometry)
-    (3, None),  # new(drive_cmd) and not new(odometry)
-    (2, None),  # not new(drive_cmd) and new(odometry)
-    (1, None),  # new(drive_cmd) and new(odometry)
+    (1, None),  # any data
 )
 CONDITIONS_1 = (('never', 'terminal', cond_1_1),)
 
@@ -120,9 +112,9 @@ def iterate_1(r: _Runner) -> _Iteration:
     st = r.state
     mask = r.begin()  # new(x) of the inputs, frozen for the transition function
     stage: dict[str, Any] = {}
-    r.partial(CASES_1_1[mask], st, stage)  # f[rover,drive,pursue,1]: update track
-    r.partial(CASES_1_2[mask], st, stage)  # f[rover,drive,pursue,2]: update nav
-    r.partial(CASES_1_3[mask], st, stage)  # f[rover,drive,pursue,3]: update memory
+    r.partial(CASES_1_1[0], st, stage)  # f[rover,drive,pursue,1]: update track
+    r.partial(CASES_1_2[(mask >> 1 & 1)], st, stage)  # f[rover,drive,pursue,2]: update nav
+    r.partial(CASES_1_3[0], st, stage)  # f[rover,drive,pursue,3]: update memory
     r.commit(stage)  # memory and outputs of i + 1; new(x) cleared
     yield from r.send(('seq', (('buf', 'track'), ('buf', 'nav'))))
     r.increment()  # i := i + 1

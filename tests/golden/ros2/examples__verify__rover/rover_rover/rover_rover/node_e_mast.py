@@ -98,22 +98,13 @@ def cond_1_1(st: State) -> bool:
 # ---------------------------------------------------------------- behaviour move: P^B[rover,mast,move]
 
 CASES_1_1 = (  # move: update setpoint
-    (4, f_1_1_1),  # not new(mast_cmd) and not new(joints)
-    (3, f_1_1_1),  # new(mast_cmd) and not new(joints)
-    (2, f_1_1_1),  # not new(mast_cmd) and new(joints)
-    (1, f_1_1_1),  # new(mast_cmd) and new(joints)
+    (1, f_1_1_1),  # any data
 )
 CASES_1_2 = (  # move: update mast
-    (4, f_1_2_1),  # not new(mast_cmd) and not new(joints)
-    (3, f_1_2_1),  # new(mast_cmd) and not new(joints)
-    (2, f_1_2_1),  # not new(mast_cmd) and new(joints)
-    (1, f_1_2_1),  # new(mast_cmd) and new(joints)
+    (1, f_1_2_1),  # any data
 )
 CASES_1_3 = (  # move: update memory
-    (4, None),  # not new(mast_cmd) and not new(joints)
-    (3, None),  # new(mast_cmd) and not new(joints)
-    (2, None),  # not new(mast_cmd) and new(joints)
-    (1, None),  # new(mast_cmd) and new(joints)
+    (1, None),  # any data
 )
 CONDITIONS_1 = (('never', 'terminal', cond_1_1),)
 
@@ -123,9 +114,9 @@ def iterate_1(r: _Runner) -> _Iteration:
     st = r.state
     mask = r.begin()  # new(x) of the inputs, frozen for the transition function
     stage: dict[str, Any] = {}
-    r.partial(CASES_1_1[mask], st, stage)  # f[rover,mast,move,1]: update setpoint
-    r.partial(CASES_1_2[mask], st, stage)  # f[rover,mast,move,2]: update mast
-    r.partial(CASES_1_3[mask], st, stage)  # f[rover,mast,move,3]: update memory
+    r.partial(CASES_1_1[0], st, stage)  # f[rover,mast,move,1]: update setpoint
+    r.partial(CASES_1_2[0], st, stage)  # f[rover,mast,move,2]: update mast
+    r.partial(CASES_1_3[0], st, stage)  # f[rover,mast,move,3]: update memory
     r.commit(stage)  # memory and outputs of i + 1; new(x) cleared
     yield from r.send(('seq', (('buf', 'setpoint'), ('buf', 'mast'))))
     r.increment()  # i := i + 1

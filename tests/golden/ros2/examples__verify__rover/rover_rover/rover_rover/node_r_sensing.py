@@ -116,10 +116,7 @@ CASES_1_2 = (  # watch: update hazard
     (1, f_1_2_1),  # new(reading) and new(attitude)
 )
 CASES_1_3 = (  # watch: update memory
-    (4, None),  # not new(reading) and not new(attitude)
-    (3, None),  # new(reading) and not new(attitude)
-    (2, None),  # not new(reading) and new(attitude)
-    (1, None),  # new(reading) and new(attitude)
+    (1, None),  # any data
 )
 CONDITIONS_1 = (('never', 'terminal', cond_1_1),)
 
@@ -131,7 +128,7 @@ def iterate_1(r: _Runner) -> _Iteration:
     stage: dict[str, Any] = {}
     r.partial(CASES_1_1[mask], st, stage)  # f[rover,sensing,watch,1]: update science
     r.partial(CASES_1_2[mask], st, stage)  # f[rover,sensing,watch,2]: update hazard
-    r.partial(CASES_1_3[mask], st, stage)  # f[rover,sensing,watch,3]: update memory
+    r.partial(CASES_1_3[0], st, stage)  # f[rover,sensing,watch,3]: update memory
     r.commit(stage)  # memory and outputs of i + 1; new(x) cleared
     yield from r.send(('seq', (('buf', 'science'), ('buf', 'hazard'))))
     r.increment()  # i := i + 1

@@ -89,10 +89,8 @@ def cond_1_1(st: State) -> bool:
 # ---------------------------------------------------------------- behaviour take: P^B[ctl,c,take]
 
 CASES_1_1 = (  # take: update memory
-    (4, None),  # not new(total) and not new(motion)
-    (3, f_1_1_1),  # new(total) and not new(motion)
-    (2, None),  # not new(total) and new(motion)
-    (1, f_1_1_1),  # new(total) and new(motion)
+    (2, None),  # not new(total)
+    (1, f_1_1_1),  # new(total)
 )
 CONDITIONS_1 = (('never', 'terminal', cond_1_1),)
 
@@ -102,7 +100,7 @@ def iterate_1(r: _Runner) -> _Iteration:
     st = r.state
     mask = r.begin()  # new(x) of the inputs, frozen for the transition function
     stage: dict[str, Any] = {}
-    r.partial(CASES_1_1[mask], st, stage)  # f[ctl,c,take,1]: update memory
+    r.partial(CASES_1_1[(mask >> 0 & 1)], st, stage)  # f[ctl,c,take,1]: update memory
     r.commit(stage)  # memory and outputs of i + 1; new(x) cleared
     r.increment()  # i := i + 1
     yield from r.receive(('seq', (('buf', 'total'), ('buf', 'motion'))))

@@ -98,22 +98,14 @@ def cond_1_1(st: State) -> bool:
 # ---------------------------------------------------------------- behaviour gather: P^B[sensor,c,gather]
 
 CASES_1_1 = (  # gather: update total
-    (4, f_1_1_1),  # not new(reading) and not new(where)
-    (3, f_1_1_1),  # new(reading) and not new(where)
-    (2, f_1_1_1),  # not new(reading) and new(where)
-    (1, f_1_1_1),  # new(reading) and new(where)
+    (1, f_1_1_1),  # any data
 )
 CASES_1_2 = (  # gather: update motion
-    (4, f_1_2_1),  # not new(reading) and not new(where)
-    (3, f_1_2_1),  # new(reading) and not new(where)
-    (2, f_1_2_1),  # not new(reading) and new(where)
-    (1, f_1_2_1),  # new(reading) and new(where)
+    (1, f_1_2_1),  # any data
 )
 CASES_1_3 = (  # gather: update memory
-    (4, None),  # not new(reading) and not new(where)
-    (3, f_1_3_1),  # new(reading) and not new(where)
-    (2, None),  # not new(reading) and new(where)
-    (1, f_1_3_1),  # new(reading) and new(where)
+    (2, None),  # not new(reading)
+    (1, f_1_3_1),  # new(reading)
 )
 CONDITIONS_1 = (('never', 'terminal', cond_1_1),)
 
@@ -123,9 +115,9 @@ def iterate_1(r: _Runner) -> _Iteration:
     st = r.state
     mask = r.begin()  # new(x) of the inputs, frozen for the transition function
     stage: dict[str, Any] = {}
-    r.partial(CASES_1_1[mask], st, stage)  # f[sensor,c,gather,1]: update total
-    r.partial(CASES_1_2[mask], st, stage)  # f[sensor,c,gather,2]: update motion
-    r.partial(CASES_1_3[mask], st, stage)  # f[sensor,c,gather,3]: update memory
+    r.partial(CASES_1_1[0], st, stage)  # f[sensor,c,gather,1]: update total
+    r.partial(CASES_1_2[0], st, stage)  # f[sensor,c,gather,2]: update motion
+    r.partial(CASES_1_3[(mask >> 0 & 1)], st, stage)  # f[sensor,c,gather,3]: update memory
     r.commit(stage)  # memory and outputs of i + 1; new(x) cleared
     yield from r.send(('seq', (('buf', 'total'), ('buf', 'motion'))))
     r.increment()  # i := i + 1

@@ -87,22 +87,13 @@ def cond_1_1(st: State) -> bool:
 # ---------------------------------------------------------------- behaviour pass: P^B[sensor,feed,pass]
 
 CASES_1_1 = (  # pass: update reading
-    (4, f_1_1_1),  # not new(level) and not new(spot)
-    (3, f_1_1_1),  # new(level) and not new(spot)
-    (2, f_1_1_1),  # not new(level) and new(spot)
-    (1, f_1_1_1),  # new(level) and new(spot)
+    (1, f_1_1_1),  # any data
 )
 CASES_1_2 = (  # pass: update where
-    (4, f_1_2_1),  # not new(level) and not new(spot)
-    (3, f_1_2_1),  # new(level) and not new(spot)
-    (2, f_1_2_1),  # not new(level) and new(spot)
-    (1, f_1_2_1),  # new(level) and new(spot)
+    (1, f_1_2_1),  # any data
 )
 CASES_1_3 = (  # pass: update memory
-    (4, None),  # not new(level) and not new(spot)
-    (3, None),  # new(level) and not new(spot)
-    (2, None),  # not new(level) and new(spot)
-    (1, None),  # new(level) and new(spot)
+    (1, None),  # any data
 )
 CONDITIONS_1 = (('never', 'terminal', cond_1_1),)
 
@@ -112,9 +103,9 @@ def iterate_1(r: _Runner) -> _Iteration:
     st = r.state
     mask = r.begin()  # new(x) of the inputs, frozen for the transition function
     stage: dict[str, Any] = {}
-    r.partial(CASES_1_1[mask], st, stage)  # f[sensor,feed,pass,1]: update reading
-    r.partial(CASES_1_2[mask], st, stage)  # f[sensor,feed,pass,2]: update where
-    r.partial(CASES_1_3[mask], st, stage)  # f[sensor,feed,pass,3]: update memory
+    r.partial(CASES_1_1[0], st, stage)  # f[sensor,feed,pass,1]: update reading
+    r.partial(CASES_1_2[0], st, stage)  # f[sensor,feed,pass,2]: update where
+    r.partial(CASES_1_3[0], st, stage)  # f[sensor,feed,pass,3]: update memory
     r.commit(stage)  # memory and outputs of i + 1; new(x) cleared
     yield from r.send(('par', (('buf', 'reading'), ('buf', 'where'))))
     r.increment()  # i := i + 1

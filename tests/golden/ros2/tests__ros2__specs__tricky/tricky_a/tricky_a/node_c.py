@@ -200,8 +200,7 @@ CASES_1_1 = (  # b: update y
     (1, f_1_1_1),  # new(x)
 )
 CASES_1_2 = (  # b: update memory
-    (2, f_1_2_1),  # not new(x)
-    (1, f_1_2_1),  # new(x)
+    (1, f_1_2_1),  # any data
 )
 CONDITIONS_1 = (('t1', 'terminal', cond_1_1), ('e1', 'error', cond_1_2))
 
@@ -212,7 +211,7 @@ def iterate_1(r: _Runner) -> _Iteration:
     mask = r.begin()  # new(x) of the inputs, frozen for the transition function
     stage: dict[str, Any] = {}
     r.partial(CASES_1_1[mask], st, stage)  # f[a,c,b,1]: update y
-    r.partial(CASES_1_2[mask], st, stage)  # f[a,c,b,2]: update memory
+    r.partial(CASES_1_2[0], st, stage)  # f[a,c,b,2]: update memory
     r.commit(stage)  # memory and outputs of i + 1; new(x) cleared
     yield from r.send(('buf', 'y'))
     r.increment()  # i := i + 1
@@ -235,12 +234,10 @@ def switch_1(st: State, conds: Mapping[str, bool]) -> str | None:
 # ---------------------------------------------------------------- behaviour h: P^B[a,c,h]
 
 CASES_2_1 = (  # h: update y
-    (2, f_2_1_1),  # not new(x)
-    (1, f_2_1_1),  # new(x)
+    (1, f_2_1_1),  # any data
 )
 CASES_2_2 = (  # h: update memory
-    (2, f_2_2_1),  # not new(x)
-    (1, f_2_2_1),  # new(x)
+    (1, f_2_2_1),  # any data
 )
 CONDITIONS_2 = (('t2', 'terminal', cond_2_1),)
 
@@ -250,8 +247,8 @@ def iterate_2(r: _Runner) -> _Iteration:
     st = r.state
     mask = r.begin()  # new(x) of the inputs, frozen for the transition function
     stage: dict[str, Any] = {}
-    r.partial(CASES_2_1[mask], st, stage)  # f[a,c,h,1]: update y
-    r.partial(CASES_2_2[mask], st, stage)  # f[a,c,h,2]: update memory
+    r.partial(CASES_2_1[0], st, stage)  # f[a,c,h,1]: update y
+    r.partial(CASES_2_2[0], st, stage)  # f[a,c,h,2]: update memory
     r.commit(stage)  # memory and outputs of i + 1; new(x) cleared
     yield from r.send(('buf', 'y'))
     r.increment()  # i := i + 1

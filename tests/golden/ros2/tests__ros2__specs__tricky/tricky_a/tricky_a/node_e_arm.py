@@ -85,8 +85,7 @@ CASES_1_1 = (  # m: update x
     (1, f_1_1_1),  # new(y)
 )
 CASES_1_2 = (  # m: update memory
-    (2, None),  # not new(y)
-    (1, None),  # new(y)
+    (1, None),  # any data
 )
 CONDITIONS_1 = (('never', 'terminal', cond_1_1),)
 
@@ -97,7 +96,7 @@ def iterate_1(r: _Runner) -> _Iteration:
     mask = r.begin()  # new(x) of the inputs, frozen for the transition function
     stage: dict[str, Any] = {}
     r.partial(CASES_1_1[mask], st, stage)  # f[a,arm,m,1]: update x
-    r.partial(CASES_1_2[mask], st, stage)  # f[a,arm,m,2]: update memory
+    r.partial(CASES_1_2[0], st, stage)  # f[a,arm,m,2]: update memory
     r.commit(stage)  # memory and outputs of i + 1; new(x) cleared
     yield from r.send(('buf', 'x'))
     r.increment()  # i := i + 1

@@ -78,8 +78,7 @@ CASES_1_1 = (  # pass: update reading
     (1, f_1_1_1),  # new(raw)
 )
 CASES_1_2 = (  # pass: update memory
-    (2, None),  # not new(raw)
-    (1, None),  # new(raw)
+    (1, None),  # any data
 )
 CONDITIONS_1 = (('never', 'terminal', cond_1_1),)
 
@@ -90,7 +89,7 @@ def iterate_1(r: _Runner) -> _Iteration:
     mask = r.begin()  # new(x) of the inputs, frozen for the transition function
     stage: dict[str, Any] = {}
     r.partial(CASES_1_1[mask], st, stage)  # f[gadget,thermo,pass,1]: update reading
-    r.partial(CASES_1_2[mask], st, stage)  # f[gadget,thermo,pass,2]: update memory
+    r.partial(CASES_1_2[0], st, stage)  # f[gadget,thermo,pass,2]: update memory
     r.commit(stage)  # memory and outputs of i + 1; new(x) cleared
     yield from r.send(('buf', 'reading'))
     r.increment()  # i := i + 1
