@@ -102,13 +102,15 @@ def random_devices(comp: Compilation,
 
 
 def random_run(comp: Compilation, seed: int, max_steps: int, until: float,
-               seconds: float, deadline: float, stop_requested: Callable[[], bool],
+               seconds: float, deadline: Callable[[], float],
+               stop_requested: Callable[[], bool],
                device_options: dict[str, dict[str, str]] | None = None,
                stall_periods: int = STALL_PERIODS) -> RunOutcome:
     """Run the specification once with ``seed``, until ``max_steps`` firings, simulated time
     ``until``, a stop of the run (deadlock, stall, error, termination), ``seconds`` of
     wall-clock time from its first firing (the set-up not counted), the wall-clock
-    ``deadline`` (``time.monotonic()``) or ``stop_requested()``."""
+    ``deadline()`` (``time.monotonic()``, asked once the set-up is done) or
+    ``stop_requested()``."""
     options: dict[str, dict[str, str]] = {"*": {"seed": str(seed)}}
     for pattern, given in (device_options or {}).items():
         options.setdefault(pattern, {}).update(given)
@@ -120,7 +122,7 @@ def random_run(comp: Compilation, seed: int, max_steps: int, until: float,
     except SetupError as e:
         raise RunSetupError("; ".join(f"{d.code} {d.message}" for d in e.diagnostics)) from e
 
-    ends = deadline
+    ends = float("inf")
 
     def watch(snapshot: Snapshot) -> None:
         if time.monotonic() > ends or stop_requested():
@@ -131,7 +133,7 @@ def random_run(comp: Compilation, seed: int, max_steps: int, until: float,
                                    until=until, macros=False, progress=watch,
                                    progress_interval=0.05, stall_periods=stall_periods))
     _recording(sim.fire, sequence)
-    ends = min(deadline, time.monotonic() + seconds)
+    ends = min(deadline(), time.monotonic() + seconds)
     result = sim.run()
     return RunOutcome(seed, result.reason, result.message, result.steps, result.time,
                       sequence, tuple(t.name for t in rt.net.transitions),
