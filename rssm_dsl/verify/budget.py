@@ -17,6 +17,11 @@ invariants) gives up on its own.
 ``run_limited`` runs an external tool (SPIN, 4ti2) under the same budget: the child is
 killed at the deadline or on a stop request, and its resident size counts towards the
 memory limit.
+
+The phases that do not check (the compilation, the flattening, ...) are the verify command's
+watchdog's (``watchdog.py``): it records the limit it sees (``expire``), reports the status
+for them (``report_status``) and interrupts them; ``completed`` lists the phases that
+returned, for the partial report (``partial.py``).
 """
 
 from __future__ import annotations
