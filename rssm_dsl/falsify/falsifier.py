@@ -36,7 +36,7 @@ class FalsifyOptions:
     max_runs: int = 12
     steps_per_run: int = 1_000_000    # firings per run at most
     until: float = 60.0               # simulated seconds per run at most
-    run_share: float = 1 / 4          # of ``seconds``: a run's wall-clock time at most
+    run_share: float = 1 / 2          # of ``seconds``: a run's wall-clock time at most
     check_progress: bool = True       # look for stalls (E809) too
     confirm_states: int = 50_000      # markings explored at most to confirm a stall
     confirm_seconds: float = 2.0      # ... and the time it may take

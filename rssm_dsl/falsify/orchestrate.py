@@ -28,7 +28,7 @@ from rssm_dsl.verify import VerifyOptions, verify
 from rssm_dsl.verify.report import Verdict, VerifyReport
 
 FIRST_TRY = 1.0       # seconds of the exhaustive engines before the random runs
-SLICE = 2.0           # seconds of random runs when the first try decided nothing
+SLICE = 1.0           # seconds of random runs when the first try decided nothing
 CHECK = 0.25          # seconds of random runs after a proof (the consistency check)
 AFTER_FOUND = 10.0    # seconds of the engines again once the runs found a violation
 SHARE = 0.05          # of the time limit, at most, for each of the above
@@ -59,16 +59,19 @@ def verify_with_simulation(net: FlatNet, comp: Compilation, options: VerifyOptio
         return apply(first, net, falsify(comp, net, budget, dataclasses.replace(
             fopts, seconds=share(CHECK))))
     found = falsify(comp, net, budget, dataclasses.replace(fopts, seconds=share(SLICE)))
+    # The first try's whole-net exploration (``slice_after_seconds``, less than the try) did
+    # not decide, or the try would have returned: the engines go on without it.
+    again_options = dataclasses.replace(options, slice_after_seconds=0.0)
     if found.finding is None:
         if not cap.hit:     # the engines' own limits (--max-states) left it open
             return apply(first, net, found)
-        return apply(verify(net, options), net, found)
+        return apply(verify(net, again_options), net, found)
     if not cap.hit:
         return apply(first, net, found)
     # a violation is known: the engines get AFTER_FOUND seconds more for the rest of the
     # picture (the shortest counterexamples, the other properties)
     with budget.capped(AFTER_FOUND) as again:
-        second = verify(net, options)
+        second = verify(net, again_options)
     if again.hit and budget.stop is None:
         second = _cut(second, f"the {AFTER_FOUND:g} s the exhaustive engines were given once "
                               "the random runs had found a violation")
