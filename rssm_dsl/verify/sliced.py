@@ -76,8 +76,8 @@ STUBBORN_STATES = 100_000   # a slice's stubborn-set search at most
 SMALL_SLICE = 10_000        # a slice explored whole when it has no more states
 COMPOSE_SHARE = 1 / 2       # of the time left, for each later try on a slice
 MANY = 4                    # subsystems: a group of this many is composed first
-FEED_STATES = 5_000         # markings searched for the outside to send what the slice's
-#                             environment wrote
+FEED_STATES = (1_000, 10_000)   # markings searched for the outside to send what the
+#                             slice's environment wrote: a first try, then a wider one
 LAYER = 64                  # markings kept per step when a lifted sequence is checked
 #                             against the values (_Whole.realise)
 FUTURE_STATES = 50_000      # markings explored at most to confirm that a subsystem never
@@ -328,6 +328,16 @@ class _Whole:
         return list(found.values())[:LAYER]
 
     def replay(self, sl: Slice, steps: Sequence[int]) -> list[_Node]:
+        """``_replay`` with the outside's searches small first, then wider."""
+        for k, feed in enumerate(FEED_STATES):
+            try:
+                return self._replay(sl, steps, feed)
+            except ReplayError:
+                if k == len(FEED_STATES) - 1:
+                    raise
+        raise AssertionError("unreachable")
+
+    def _replay(self, sl: Slice, steps: Sequence[int], feed: int) -> list[_Node]:
         """The group's moves ``steps`` (the flat net's, from the slice's sequence) in the
         whole net with the values tracked: where the slice took data its environment wrote,
         the producer outside (and what feeds it) runs until it has sent some; a step not
@@ -360,7 +370,7 @@ class _Whole:
             chan = chans.get(tr.channel or "")
             if chan is not None and tr.role is Role.RECEIVE and tr.channel in feeds and (
                     chan.full in tr.pre or chan.empty in tr.pre):
-                self._receive(layer, t, chan, feeds[chan.name], nxt)
+                self._receive(layer, t, chan, feeds[chan.name], nxt, feed)
             else:
                 for n in layer:
                     self._fire(n, [t], nxt)
@@ -387,7 +397,7 @@ class _Whole:
         return layer
 
     def _receive(self, layer: list[_Node], t: int, chan: Channel, feeders: set[str | None],
-                 nxt: dict[frozenset[int], _Node]) -> None:
+                 nxt: dict[frozenset[int], _Node], feed: int) -> None:
         """A non-blocking receive from the outside, whichever the slice took: nothing new
         (when the channel is empty), or what the outside sends, any value it can."""
         net = self.source
@@ -401,7 +411,7 @@ class _Whole:
         if not take:
             return
         empty = [n for n in layer if chan.full not in n.marking]
-        fed = self.search(empty, feeders, _has(chan.full), FEED_STATES,
+        fed = self.search(empty, feeders, _has(chan.full), feed,
                           every_value=True) if empty else []
         taken: dict[frozenset[int], _Node] = {}
         for n in [*fed, *(n for n in layer if chan.full in n.marking)]:
@@ -695,7 +705,7 @@ class _Lifted:
                 tried = ("the group's steps replayed in the whole net with the values tracked: "
                          "where the slice's environment wrote data, the subsystems outside "
                          "that produce it run until they have sent some, any value they can "
-                         f"(up to {FEED_STATES:,} markings each time); wherever a step was "
+                         f"(up to {FEED_STATES[-1]:,} markings each time); wherever a step was "
                          f"not enabled, a search of up to {OUTSIDE_STATES:,} markings of the "
                          "other subsystems' moves")
             else:
