@@ -145,6 +145,8 @@ class _Gen:
         pairs = [(i, (i + 1) % n) for i in range(n)] if n > 2 or self.chance(0.5) else [(0, 1)]
         if n == 2 and len(pairs) == 2 and self.chance(0.3):
             pairs = [(0, 1), (1, 0)]
+        if n == 2 and self.chance(0.35):
+            pairs.append((0, 1))        # a second channel the same way
         if 3 <= n <= 4 and self.chance(0.3):
             i, j = self.rng.sample(range(n), 2)
             if (i, j) not in pairs:
@@ -267,7 +269,7 @@ class _Gen:
             self.features.add("memory:enum")
             lines.append(f"  memory ph: {ENUM} = {self.literal('enum')}")
         lines += [f"  {p.decl}" for p in (*c.outputs, *c.inputs)]
-        nb = self.rng.choice((1, 1, 2, 2, 3) if size <= 3 else (1, 1, 2))
+        nb = self.rng.choice((1, 1, 2, 2, 3) if size <= 2 else (1, 1, 2))
         c.behaviours = [f"b{i}" for i in range(nb)]
         if nb > 1:
             self.features.add("behaviours:several")
@@ -281,7 +283,9 @@ class _Gen:
         lines.append("}")
         return lines
 
-    def effector(self, t: str) -> list[str]:
+    def effector(self, t: str, device_blocking: bool) -> list[str]:
+        """A virtual effector between c and an echo device; mostly in lock step with both
+        (blocking), which keeps the state space small."""
         self.features.update(("effector", "device:effector"))
         tn = type_name(t)
         case = self.chance(0.5)
@@ -290,12 +294,13 @@ class _Gen:
         status = (["    update st {", "      case new(meas):", "        st := meas",
                    "      otherwise:", "        skip", "    }"] if case
                   else ["    update st { st := meas }"])
-        recv = self.rng.choice(("", "  receive cmd; meas", "  receive cmd | meas",
-                                "  receive meas; cmd"))
-        cmd_mode = self.rng.choice(("", " blocking"))
+        recv = self.rng.choice(("", "    receive cmd; meas", "    receive cmd | meas",
+                                "    receive meas; cmd"))
+        cmd_mode = " blocking" if self.chance(0.7) else ""
+        meas_mode = " blocking" if self.chance(0.5) else ""
         return ["effector eff {",
                 f"  input cmd: {tn} from c{cmd_mode}",
-                f"  input meas: {tn} from E.act",
+                f"  input meas: {tn} from E.act{meas_mode}",
                 f"  output drive: {tn} to E.act",
                 f"  output st: {tn} to c",
                 "  behaviour follow {",
@@ -306,13 +311,13 @@ class _Gen:
                 "  }",
                 "  initial follow",
                 "}",
-                f"real effector act: Act_{t}"]
+                f"real effector act: {_act(t, device_blocking)}"]
 
     def receptor(self, t: str) -> list[str]:
-        self.features.update(("receptor", "device:receptor"))
+        self.features.update(("receptor", "device:receptor", f"case:{t}"))
         tn = type_name(t)
         return ["receptor sense {",
-                f"  input reading: {tn} from R.sen",
+                f"  input reading: {tn} from R.sen{' blocking' if self.chance(0.6) else ''}",
                 f"  output obs: {tn} to c",
                 "  behaviour watch {",
                 "    update obs {",
@@ -350,12 +355,16 @@ class _Gen:
         return out
 
 
-def _device_types(effectors: set[str], receptors: set[str]) -> list[str]:
+def _act(t: str, blocking: bool) -> str:
+    return f"Act_{t}_{'b' if blocking else 'n'}"
+
+
+def _device_types(effectors: set[tuple[str, bool]], receptors: set[str]) -> list[str]:
     lines = []
-    for t in sorted(effectors):
+    for t, blocking in sorted(effectors):
         tn = type_name(t)
-        lines += [f"device effector Act_{t} {{",
-                  f"  input drive: {tn} nonblocking",
+        lines += [f"device effector {_act(t, blocking)} {{",
+                  f"  input drive: {tn} {'blocking' if blocking else 'nonblocking'}",
                   f"  output meas: {tn} nonblocking",
                   '  binding "rssm_stdlib.devices.echo:EchoDevice"',
                   "}", ""]
@@ -375,10 +384,10 @@ def _indent(lines: list[str], by: int) -> list[str]:
 def generate(seed: int) -> GeneratedSpec:
     """The spec of ``seed`` (deterministic)."""
     g = _Gen(seed)
-    n = g.rng.choices((2, 3, 4, 5, 6), (5, 3, 2, 1, 1))[0]
+    n = g.rng.choices((2, 3, 4, 5, 6), (10, 4, 2, 1, 1))[0]
     g.features.add(f"agents:{n}")
     agents = [f"a{i}" for i in range(n)]
-    rich = 0.5 if n <= 3 else 0.2
+    rich = 0.3 if n <= 3 else 0.1
     controls = {a: Control(a, has_flag=g.chance(rich), has_phase=g.chance(rich * 0.7))
                 for a in agents}
     for ch in g.channels(agents):
@@ -390,16 +399,17 @@ def generate(seed: int) -> GeneratedSpec:
         controls[ch.consumer].inputs.append(
             Port(ch.name, ch.type, f"input {ch.name}: {tn} from {ch.producer}.c {cm}"))
     # virtual subsystems with devices: few of them, fewer in larger systems
-    devices = 1 if (n == 2 and g.chance(0.6)) or (n == 3 and g.chance(0.4)) else 0
-    effectors: dict[str, str] = {}
+    devices = (1 + g.chance(0.25)) if n == 2 and g.chance(0.45) else 0
+    effectors: dict[str, tuple[str, bool]] = {}
     receptors: dict[str, str] = {}
     for _ in range(devices):
         a = g.rng.choice(agents)
         t = g.rng.choice(TYPES)
         if g.chance(0.5) and a not in effectors:
-            effectors[a] = t
+            effectors[a] = (t, g.chance(0.7))
             c = controls[a]
-            c.outputs.append(Port("cmd", t, f"output cmd: {type_name(t)} to e.eff"))
+            mode = " blocking" if g.chance(0.7) else ""
+            c.outputs.append(Port("cmd", t, f"output cmd: {type_name(t)} to e.eff{mode}"))
             c.inputs.append(Port("st", t, f"input st: {type_name(t)} from e.eff"))
         elif a not in receptors:
             receptors[a] = t
@@ -408,7 +418,7 @@ def generate(seed: int) -> GeneratedSpec:
     for a in agents:
         part = g.control(controls[a], n)
         if a in effectors:
-            part += g.effector(effectors[a])
+            part += g.effector(*effectors[a])
         if a in receptors:
             part += g.receptor(receptors[a])
         body += [f"agent {a} {{", *_indent(part, 2), "}"]
