@@ -179,10 +179,13 @@ class StubbornExplorer:
             else:       # several unmarked inputs: the one bringing the fewest new transitions
                 add = -1
                 best = -1
-                for q in bits(missing):
-                    extra = (producers[q] & ~s).bit_count()
+                while missing:
+                    low_q = missing & -missing
+                    missing ^= low_q
+                    makers = producers[low_q.bit_length() - 1]
+                    extra = (makers & ~s).bit_count()
                     if best < 0 or extra < best:
-                        best, add = extra, producers[q]
+                        best, add = extra, makers
                         if extra == 0:
                             break
             new = add & ~s
