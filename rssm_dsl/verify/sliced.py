@@ -606,6 +606,7 @@ class _Lifted:
         prefix = start.path()
         into = turn.path()
         m = w.raw(start.marking)
+        stuck = [s for s in sl.net.subsystems if live[s] & _mask(m)]
         for s in stuck:
             self.progress.append(Counterexample(
                 "progress", w.steps(prefix), self._labels(m), subsystem=s,
