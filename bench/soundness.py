@@ -21,7 +21,13 @@ from pathlib import Path
 ROOT = Path(__file__).resolve().parents[1]
 sys.path.insert(0, str(ROOT))
 
-from tests.soundness.checker import ENGINES, Limits, SpecResult, check_spec  # noqa: E402
+from tests.soundness.checker import (  # noqa: E402
+    ENGINES,
+    Limits,
+    SpecResult,
+    check_spec,
+    known_error,
+)
 from tests.soundness.generator import generate  # noqa: E402
 
 
@@ -60,6 +66,8 @@ def main(argv: list[str] | None = None) -> int:
     undecided: Counter[str] = Counter()
     features: Counter[str] = Counter()
     kinds: Counter[str] = Counter()
+    known: Counter[str] = Counter()
+    unexplained = 0
     bad: list[tuple[int, SpecResult]] = []
     replays = 0
     seeds = range(args.seed, args.seed + args.count)
@@ -72,6 +80,11 @@ def main(argv: list[str] | None = None) -> int:
             for e, o in result.outcomes.items():
                 undecided[e] += o.undecided
             kinds.update(d.what.split(" of ")[0] for d in result.disagreements)
+            bugs = {result.known(d) for d in result.disagreements}
+            if result.error:
+                bugs.add(known_error(result.error))
+            known.update(b for b in bugs if b is not None)
+            unexplained += None in bugs
             if result.disagreements or result.error:
                 bad.append((seed, result))
                 path = write_disagreement(args.out, seed, text, result)
@@ -89,6 +102,9 @@ def main(argv: list[str] | None = None) -> int:
     print(f"specs: {n} (seeds {args.seed}..{args.seed + n - 1}), {args.jobs} job(s), "
           f"limits {limits.seconds:g} s / {limits.max_states:,} states per engine")
     print(f"disagreeing specs: {len(bad)}" + (f" ({dict(kinds)})" if kinds else ""))
+    print(f"  explained by known engine bugs (tests/soundness/checker.py KNOWN_BUGS): "
+          f"{dict(known) if known else 'none'}")
+    print(f"  unexplained (new): {unexplained}")
     print(f"counterexamples replayed: {replays}")
     print("undecided (per engine, specs with some answer not decided within the limits):")
     for e in ENGINES:

@@ -133,7 +133,17 @@ KNOWN_BUGS = {
     "abstract-violation-kept": "abstract_deadlock.rssm: a violation found with the "
                                "conditions as free choices is reported as VIOLATED when a "
                                "limit stops the run before the values are tracked",
+    "limit-in-property-lasso": "limit_in_property_lasso.rssm: a limit reached while userprops "
+                               "builds a response property's lasso raises LimitReached out "
+                               "of verify()",
 }
+
+
+def known_error(error: str | None) -> str | None:
+    """The known bug that explains a crash of the harness (``SpecResult.error``)."""
+    if error and "LimitReached" in error and "userprops.py" in error:
+        return "limit-in-property-lasso"
+    return None
 
 
 def known_bug(d: Disagreement, outcomes: Mapping[str, Outcome],
