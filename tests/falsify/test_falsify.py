@@ -214,3 +214,14 @@ def test_the_exhaustive_engines_agree_with_the_runs(spec: str) -> None:
     r = rssmc("verify", SPECS / spec, "--no-simulation", "--format", "json")
     report = json.loads(r.stdout)
     assert report["verdict"] == "violated" and report["progress_ok"] is False, r.stdout
+
+
+def test_the_seed_option_gives_the_same_counterexample_again() -> None:
+    def counterexample(seed: str) -> object:
+        r = rssmc("verify", RARE_END, "--max-states", "10", "--reduction", "off", "--seed", seed,
+                  "--format", "json")
+        sim = json.loads(r.stdout)["simulation"]
+        assert sim["seed"] == int(seed) and sim["found"] == "progress", r.stdout
+        return sim["counterexample"]
+
+    assert counterexample("7") == counterexample("7")
