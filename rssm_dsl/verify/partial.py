@@ -109,7 +109,7 @@ class PartialReport:
             "phases_completed": [{"phase": name, "seconds": round(seconds, 3)}
                                  for name, seconds in self.completed],
             "interrupted_phase": self.interrupted,
-            "groups": [], "user_properties": [], "unconfirmed": [],
+            "groups": [], "user_properties": [], "unconfirmed": [], "simulation": None,
             "conditions": {"new_tracked_cases": 0, "tracked_values": [], "free_choices": []},
         }
 

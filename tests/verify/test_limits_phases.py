@@ -308,3 +308,16 @@ def test_a_cross_check_stopped_by_the_watchdog_keeps_the_verdict(
     assert result.stdout.startswith("system handshake: VIOLATED")
     assert ("independent cross-checks: stopped (time limit of 8 s reached in the "
             "cross-checks)") in result.stdout
+
+
+def test_the_partial_json_has_every_key_of_the_full_report(
+        monkeypatch: pytest.MonkeyPatch) -> None:
+    import rssm_dsl.pipeline as pipeline
+
+    full, _ = verify_in_process(SPEC, "--format", "json")
+    monkeypatch.setattr(pipeline, "compile_file", slowed(pipeline.compile_file))
+    partial, _ = verify_in_process(SPEC, "--timeout", "1", "--format", "json")
+    assert partial.exit_code == EXIT_INCONCLUSIVE
+    keys = set(json.loads(partial.stdout))
+    assert set(json.loads(full.stdout)) <= keys
+    assert {"phases_completed", "interrupted_phase"} <= keys
