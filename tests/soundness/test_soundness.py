@@ -37,7 +37,7 @@ from tests.soundness.generator import FEATURES, generate
 HERE = Path(__file__).resolve().parent
 REGRESSIONS = sorted((HERE / "regressions").glob("*.rssm"))
 BATCH_SEED = 20_000
-BATCH_COUNT = 24        # about 2-3 minutes on the project's 2-core machine
+BATCH_COUNT = 18        # about 2-3 minutes on the project's 2-core machine
 COVERAGE_SEEDS = range(300)
 
 # ------------------------------------------------------------------------- generator
