@@ -272,20 +272,23 @@ class Unconfirmed:
     group: tuple[str, ...]
     why: str
     tried: str
-    counterexample: Counterexample
+    counterexample: Counterexample | None    # None: found without one (compositionally)
 
     def headline(self) -> str:
         return (f"{self.what} found in the slice of {', '.join(self.group)}, not confirmed "
                 f"in the whole net ({self.why})")
 
     def lines(self) -> list[str]:
-        return [self.headline(), f"    tried: {self.tried}",
-                "    the slice's firing sequence:", *self.counterexample.lines()]
+        out = [self.headline(), f"    tried: {self.tried}"]
+        if self.counterexample is not None:
+            out += ["    the slice's firing sequence:", *self.counterexample.lines()]
+        return out
 
     def to_json(self) -> dict[str, Any]:
         return {"kind": self.kind, "what": self.what, "group": list(self.group),
                 "why": self.why, "tried": self.tried,
-                "counterexample": self.counterexample.to_json()}
+                "counterexample": self.counterexample.to_json()
+                if self.counterexample is not None else None}
 
 
 @dataclass(frozen=True)

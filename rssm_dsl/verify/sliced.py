@@ -720,6 +720,20 @@ class _Lifted:
                                            tried, cx))
             self.cut_by.append(sl.cut)
 
+    def without_trace(self, sl: Slice, r: VerifyReport) -> None:
+        """What a slice's compositional check found without a firing sequence (a stuck
+        group, a loss of progress): nothing to lift, so unconfirmed."""
+        tried = ("the slice's compositional check found it; no firing sequence of the slice "
+                 "leading to it was found within the limits, so there is nothing to replay in "
+                 "the whole net")
+        group = tuple(sorted(sl.keep))
+        if r.deadlock_free is False and not r.deadlocks:
+            self.failed.append(Unconfirmed("deadlock", "a stuck group", group,
+                                           "no firing sequence to lift", tried, None))
+        for s in r.progress_lost:
+            self.failed.append(Unconfirmed("progress", f"a loss of progress of {s}", group,
+                                           "no firing sequence to lift", tried, None))
+
     def lift_all(self, sl: Slice, r: VerifyReport) -> None:
         """Every violation of ``sl``'s report ``r``."""
         for cx in r.deadlocks:
@@ -796,6 +810,7 @@ def _combine(net: FlatNet, groups: Sequence[tuple[str, ...]],
     lifted = _Lifted(net, whole)
     for sl, r in parts:
         lifted.lift_all(sl, r)
+        lifted.without_trace(sl, r)
     reports = [r for _, r in parts]
     done = len(parts) == len(groups)
     safe, deadlock_free, progress_ok, verdict = _verdicts(reports, lifted, done, check_progress)
@@ -851,7 +866,7 @@ def _combine(net: FlatNet, groups: Sequence[tuple[str, ...]],
         progress_ok=progress_ok if check_progress else None,
         progress=tuple({c.subsystem: c for c in reversed(lifted.progress)}.values())[::-1],
         progress_checked=tuple(s for r in reports for s in r.progress_checked),
-        progress_lost=tuple(s for r in reports for s in r.progress_lost),
+        progress_lost=(),       # a slice's, without a trace: unconfirmed (without_trace)
         dead_transitions=dead,
         unreachable_behaviours=unreachable,
         seconds=time.monotonic() - start,
@@ -891,15 +906,15 @@ def _verdicts(reports: list[VerifyReport], lifted: _Lifted, done: bool, check_pr
     deadlock_free: bool | None
     if lifted.deadlocks:
         deadlock_free = False
-    elif any(r.deadlock_free for r in reports) or (
-            done and all(r.deadlock_free is not None for r in reports)
-            and not any(r.deadlocks for r in reports)):
+    elif any(r.deadlock_free for r in reports):
+        # one deadlock-free slice: the whole net is (a slice's deadlock, with or without a
+        # firing sequence, proves nothing of the whole net until it is lifted)
         deadlock_free = True
     else:
         deadlock_free = None
     stuck_groups = any(r.deadlocks for r in reports)
     progress_ok: bool | None
-    if lifted.progress or any(r.progress_lost for r in reports):
+    if lifted.progress:
         progress_ok = False
     elif check_progress and not stuck_groups and not lifted.failed:
         progress_ok = _all([r.progress_ok for r in reports], done)

@@ -132,9 +132,11 @@ def test_a_spurious_slice_violation_is_reported_unconfirmed_not_violated() -> No
     assert "a.c (run) ends [failed]" in u.why and "values tracked" in u.why
     assert "other subsystems' moves" in u.tried and "values tracked" in u.tried
     # the slice's own firing sequence, with the environment's move that made it possible
+    cx = u.counterexample
+    assert cx is not None
     assert any(t.label.startswith("a.e.probe sends (environment of the slice")
-               for t in u.counterexample.steps)
-    assert all(t.span.file.endswith("spurious_slice.rssm") for t in u.counterexample.steps
+               for t in cx.steps)
+    assert all(t.span.file.endswith("spurious_slice.rssm") for t in cx.steps
                if t.subsystem is not None)
     assert report.why_undecided == ("a stuck group found in the slice of a.c, b.c was not "
                                     "confirmed in the whole net")
@@ -157,3 +159,34 @@ def test_a_report_without_slices_has_no_unconfirmed_violations() -> None:
     r = verify(net, VerifyOptions(reduction="off", slicing=False, values=plan))
     assert r.unconfirmed == () and r.to_json()["unconfirmed"] == []
     assert "not confirmed" not in render_text(dataclasses.replace(r))
+
+
+def test_a_slice_finding_without_a_firing_sequence_is_unconfirmed_not_violated() -> None:
+    """A slice's compositional check can show a stuck group or a loss of progress with no
+    firing sequence (the stubborn sets found none within their limits): nothing to lift,
+    so the verdict stays open and the report names them; no deadlock freedom is concluded
+    from slices none of which is deadlock-free."""
+    from rssm_dsl.verify.sliced import _combine
+    from rssm_dsl.verify.slicing import slice_net
+
+    _, net, _ = _compiled("spurious_slice")
+    groups = blocking_groups(net)
+    budget = Budget(60.0)
+    parts = []
+    for g in groups:
+        sl = slice_net(net, g)
+        r = verify(sl.net, VerifyOptions(reduction="off", slicing=False, budget=budget))
+        if "a.c" in g:      # as the compositional check reports it: no trace
+            r = dataclasses.replace(r, deadlocks=(), progress=(), deadlock_free=False,
+                                    progress_ok=False, progress_lost=("b.c",))
+        else:
+            r = dataclasses.replace(r, deadlock_free=None)
+        parts.append((sl, r))
+    report = _combine(net, groups, parts, budget, 0.0, True)
+    assert report.verdict is Verdict.INCONCLUSIVE
+    assert report.deadlock_free is None and report.progress_ok is None
+    assert report.progress_lost == ()
+    assert [(u.kind, u.what, u.counterexample) for u in report.unconfirmed] == [
+        ("deadlock", "a stuck group", None), ("progress", "a loss of progress of b.c", None)]
+    assert report.to_json()["unconfirmed"][0]["counterexample"] is None
+    assert "no firing sequence" in render_text(report)
