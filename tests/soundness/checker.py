@@ -59,6 +59,7 @@ ENGINES: dict[str, dict[str, Any]] = {
     "sliced": {"reduction": "auto", "slice_after_states": 1},
 }
 PROPS_WHOLE = "props-whole"
+MID_FUNCTION = "inside the transition function"
 FIELDS = ("safe", "deadlock_free", "progress_ok")
 
 
@@ -130,9 +131,6 @@ KNOWN_BUGS = {
                            "transition function; the interpreter commits it at the join",
     "ended-loses-progress": "ends_by_design.rssm: a subsystem that ends by a switch to `end` "
                             "whose guard reads tracked values is reported as losing progress",
-    "abstract-violation-kept": "abstract_deadlock.rssm: a violation found with the "
-                               "conditions as free choices is reported as VIOLATED when a "
-                               "limit stops the run before the values are tracked",
     "limit-in-property-lasso": "limit_in_property_lasso.rssm: a limit reached while userprops "
                                "builds a response property's lasso raises LimitReached out "
                                "of verify()",
@@ -148,18 +146,12 @@ def known_error(error: str | None) -> str | None:
 
 def known_bug(d: Disagreement, outcomes: Mapping[str, Outcome],
               ending: frozenset[str]) -> str | None:
-    if d.what.startswith("replay property"):
+    if d.what.startswith("replay property") and MID_FUNCTION in d.detail:
         return "property-cx-at-fork"
     if d.what == "progress lost":
         sets = [o.lost for o in outcomes.values() if o.progress_ok is False]
         if sets and all(s - min(sets, key=len) <= ending for s in sets):
             return "ended-loses-progress"
-    if d.what in FIELDS:
-        name = d.what
-        wrong = [o for o in outcomes.values() if getattr(o, name) is False]
-        right = [o for o in outcomes.values() if getattr(o, name) is True]
-        if right and wrong and all(o.stopped and not o.counterexamples for o in wrong):
-            return "abstract-violation-kept"
     return None
 
 
@@ -282,7 +274,14 @@ def property_violated(comp: Compilation, name: str, cx: Counterexample) -> tuple
     formulas = [Formula(comp.system, e) for e in prop.expressions]
     truth = [f(in_behaviour, value) for f in formulas]
     bad = (not truth[0]) if prop.kind == "always" else (truth[0] and not truth[1])
-    return bad, f"after {len(cx.steps)} firings the property reads {truth}"
+    # subsystems the property reads that stand between the fork and the join of their
+    # transition function (its partial functions' places marked), where the verifier's
+    # values are already the transition function's results (dataplan.py)
+    read = {a.subsystem_id for f in formulas for a in f.atoms}
+    mid = sorted({p.subsystem for p in rt.net.places if p.index in marked
+                  and p.subsystem in read and "partial function" in p.label})
+    where = f"; {MID_FUNCTION}: {', '.join(mid)}" if mid else ""
+    return bad, f"after {len(cx.steps)} firings the property reads {truth}{where}"
 
 
 # ---------------------------------------------------------------------------- compare
