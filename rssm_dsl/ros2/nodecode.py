@@ -347,13 +347,21 @@ class SubsystemCode:
             table = f"CASES_{b}_{pf.index}"
             split = case_rule.split_of(pf.cases[0].new)
             tables.append(f"{table} = (  # {comment(f'{beh.name}: update {pf.target}')}")
-            for mask in range(1 << len(split)):
-                case, fn = by_mask[mask]
-                tables.append(f"{INDENT}({case.index}, {fn}),  # "
-                              + comment(combination_text(inputs, case.new)))
+            if case_rule.uniform([c.new for c in pf.cases]):
+                for mask in range(1 << len(split)):
+                    case, fn = by_mask[mask]
+                    tables.append(f"{INDENT}({case.index}, {fn}),  # "
+                                  + comment(combination_text(inputs, case.new)))
+                pick = f"{table}[{row_source(split, len(inputs))}]"
+            else:   # cubes (rssm_dsl/semantics/cases.py): the case whose fixed inputs match
+                for case in pf.cases:
+                    fn = "None" if case.void else self._case_function(b, beh, pf, case)
+                    care, want = case_rule.care_want(case.new)
+                    tables.append(f"{INDENT}({care:#x}, {want:#x}, ({case.index}, {fn})),  # "
+                                  + comment(combination_text(inputs, case.new)))
+                pick = f"next(c for m, w, c in {table} if mask & m == w)"
             tables.append(")")
-            row = row_source(split, len(inputs))
-            calls.append(f"{INDENT}r.partial({table}[{row}], st, stage)  # "
+            calls.append(f"{INDENT}r.partial({pick}, st, stage)  # "
                          + comment(f"f[{self.j},{self.sub.name},{beh.name},{pf.index}]: "
                                    f"update {pf.target}"))
         return tables, calls

@@ -91,6 +91,47 @@ def eval_availability(e: ast.Expr, inputs: tuple[str, ...], new: case_rule.Combi
     raise _NotData(e.span)
 
 
+def data_only(e: ast.Expr, inputs: tuple[str, ...]) -> None:
+    """Raise _NotData at the first part of a case condition that is not new(x) of an input,
+    and/or/not, true/false (all of it, without evaluating it)."""
+    match e:
+        case ast.Literal(value=bool()):
+            return
+        case ast.Call(function="new", args=(ast.Name(name=n),)) if n in inputs:
+            return
+        case ast.Unary(op="not", operand=x):
+            data_only(x, inputs)
+            return
+        case ast.Binary(op="and" | "or", left=a, right=b):
+            data_only(a, inputs)
+            data_only(b, inputs)
+            return
+    raise _NotData(e.span)
+
+
+def partial_availability(e: ast.Expr, inputs: tuple[str, ...], given: dict[str, bool]
+                         ) -> bool | None:
+    """A case condition with new(x) known for the inputs in ``given`` only: its value, or
+    None when it still depends on the others."""
+    match e:
+        case ast.Literal(value=bool() as v):
+            return v
+        case ast.Call(function="new", args=(ast.Name(name=n),)) if n in inputs:
+            return given.get(n)
+        case ast.Unary(op="not", operand=x):
+            inner = partial_availability(x, inputs, given)
+            return None if inner is None else not inner
+        case ast.Binary(op="and", left=a, right=b):
+            va, vb = (partial_availability(a, inputs, given),
+                      partial_availability(b, inputs, given))
+            return False if va is False or vb is False else None if None in (va, vb) else True
+        case ast.Binary(op="or", left=a, right=b):
+            va, vb = (partial_availability(a, inputs, given),
+                      partial_availability(b, inputs, given))
+            return True if va is True or vb is True else None if None in (va, vb) else False
+    raise _NotData(e.span)
+
+
 @dataclass
 class SubsystemUsage:
     reads: set[str] = field(default_factory=set)
@@ -205,7 +246,8 @@ class BehaviourPass:
         the clauses are checked disjoint and exhaustive over them, which is exact: no clause
         reads another input."""
         inputs = self.input_names
-        combos = case_rule.combinations(split, len(inputs))
+        combos = (case_rule.combinations(split, len(inputs))
+                  if len(split) <= case_rule.FULL_SPLIT else [])
         explicit: list[tuple[int, ast.Case]] = []
         fallback: tuple[int, ast.Case] | None = None
         broken = False  # a condition already reported: coverage is not checked
@@ -224,8 +266,11 @@ class BehaviourPass:
                 broken = True
                 continue
             try:
-                for combo in combos:
-                    eval_availability(case.condition, inputs, combo)
+                if len(split) <= case_rule.FULL_SPLIT:
+                    for combo in combos:
+                        eval_availability(case.condition, inputs, combo)
+                else:
+                    data_only(case.condition, inputs)
             except _NotData as e:
                 self.bag.error("E506", "a case condition may only combine new(x) of input "
                                "buffers with and/or/not", e.span,
@@ -236,6 +281,8 @@ class BehaviourPass:
         out: list[DataCase] = []
         missing: list[str] = []
         overlaps: dict[tuple[int, int], list[str]] = {}
+        if len(split) > case_rule.FULL_SPLIT:
+            combos = self._cubes(explicit, split)
         for varpi, combo in enumerate(combos, start=1):
             covering = [(i, c) for i, c in explicit if eval_availability(c.condition, inputs, combo)]  # type: ignore[arg-type]
             if len(covering) > 1:
@@ -258,6 +305,33 @@ class BehaviourPass:
                 u.target_span, "add the missing case(s) or an `otherwise:` case",
             )
         return tuple(out)
+
+    def _cubes(self, explicit: list[tuple[int, ast.Case]], split: tuple[int, ...]
+               ) -> list[case_rule.Combination]:
+        """The cases of a function whose behaviour splits more than FULL_SPLIT inputs
+        (rssm_dsl/semantics/cases.py): the leaves of a decision on new(x), input by input (in
+        declaration order, new first), of the inputs the clauses still undecided read; a leaf
+        is reached when every clause is decided (a partial evaluation), so it stands for one
+        clause (or `otherwise`, or a missing or overlapping combination, which the caller
+        reports) for every value of the inputs it leaves open."""
+        inputs = self.input_names
+        n = len(inputs)
+        reads = [{inputs.index(x) for x in new_reads(c.condition, inputs)}  # type: ignore[arg-type]
+                 for _, c in explicit]
+        out: list[case_rule.Combination] = []
+        todo: list[dict[int, bool]] = [{}]
+        while todo:
+            known = todo.pop()
+            given = {inputs[k]: v for k, v in known.items()}
+            open_ = [r for (_, c), r in zip(explicit, reads, strict=True)
+                     if partial_availability(c.condition, inputs, given) is None]  # type: ignore[arg-type]
+            nxt = next((k for k in split if k not in known and any(k in r for r in open_)),
+                       None)
+            if nxt is None:
+                out.append(tuple(known.get(k) for k in range(n)))
+                continue
+            todo += [{**known, nxt: False}, {**known, nxt: True}]   # new first (popped first)
+        return out
 
     # ------------------------------------------------------------------ statements
     def _body(self, body: tuple[ast.Stmt, ...], target: str) -> None:

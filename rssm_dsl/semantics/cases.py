@@ -12,6 +12,15 @@ combination of them. So a subsystem with 64 inputs and no `case` has one case pe
 function, and the paper's LWR4+ (whose cases read both of its two inputs) keeps the paper's
 four cases per partial function (Fig. 16).
 
+Beyond FULL_SPLIT split inputs (2^k would be too many cases: a user whose clauses read 20
+inputs), a partial function has the cases its clauses decide instead: new(x) is decided
+input by input (in declaration order) only as long as some clause's value still depends on
+it, so each case is a *cube*: the combination of the inputs decided on its way, the others
+``None``; each stands for one clause (or `otherwise`) for every value of the inputs it leaves
+open. A clause that is a conjunction of k literals gives about k + 1 cases, not 2^k. Such a
+function's cases fix different inputs; the backends read a case as "new(x) of the inputs it
+fixes equal its combination" (:func:`covers`), which holds for both forms.
+
 A case's combination is written per input of the subsystem: ``True`` (new), ``False`` (not
 new), ``None`` (not split: any). Cases are numbered as the paper's Eq. 5 numbers them, over
 the split inputs: varpi = 1 is "all new", the first split input varies fastest. At run time
@@ -24,6 +33,7 @@ from __future__ import annotations
 from collections.abc import Callable, Iterable, Sequence
 
 Combination = tuple[bool | None, ...]       # new(x) per input; None: not split by the case
+FULL_SPLIT = 8         # the paper's 2^k cases up to k split inputs; beyond, cubes (above)
 
 
 def split_of(new: Combination) -> tuple[int, ...]:
@@ -60,6 +70,20 @@ def bits(mask: int, split: Sequence[int]) -> int:
     input ``split[i]`` (the row of the case in a table ordered by mask, as the generated
     ROS 2 nodes order theirs)."""
     return sum((mask >> k & 1) << i for i, k in enumerate(split))
+
+
+def uniform(cases: Sequence[Combination]) -> bool:
+    """The cases are the 2^k combinations of one set of k split inputs (the paper's form),
+    so a table indexed by their new(x) bits selects them."""
+    split = split_of(cases[0]) if cases else ()
+    return len(cases) == 1 << len(split) and all(split_of(c) == split for c in cases)
+
+
+def care_want(new: Combination) -> tuple[int, int]:
+    """A case as two bit masks: the inputs it fixes, and those of them it wants new; the
+    run-time ``mask`` selects it when ``mask & care == want``."""
+    care = sum(1 << k for k, v in enumerate(new) if v is not None)
+    return care, sum(1 << k for k, v in enumerate(new) if v)
 
 
 def selector(split: Sequence[int]) -> Callable[[int], int]:

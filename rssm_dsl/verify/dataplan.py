@@ -53,6 +53,7 @@ from rssm_dsl.syntax import ast
 from rssm_dsl.syntax.walk import names, statement_exprs
 
 MAX_VALUATIONS = 4096      # per transition: beyond, its values are left unknown
+MAX_OPEN_INPUTS = 10       # new(x) not known of more split inputs: a fork writes any value
 
 
 class _UnknownValue(Exception):
@@ -104,6 +105,10 @@ class Step:
     run: Callable[[Mapping[str, Any]], list[Outcome]]
     # a guarded step: its condition on the values (None: unknown, a free choice)
     holds: Callable[[Mapping[str, Any]], bool | None] | None = None
+    # per written key, the keys its new value may depend on (None: every key of ``reads``):
+    # the cone of influence follows these, so a transition function that computes a
+    # tracked flag beside a counter nobody tests does not drag the counter's inputs in
+    deps: Mapping[str, tuple[str, ...]] | None = None
 
 
 @dataclass(frozen=True)
@@ -286,6 +291,7 @@ class _Planner:
         compiled: dict[int, tuple[Any, tuple[str, ...]]] = {}
         written: set[str] = set()
         used: set[str] = set()
+        deps: dict[str, set[str]] = {}
         for pf in beh.functions:
             for case in pf.cases:
                 if case.void:
@@ -293,9 +299,16 @@ class _Planner:
                 run, names_ = s.compiler.case(case.body)
                 compiled[id(case)] = (run, s.reads(names_))
                 written |= set(names_)
-                used |= _stmt_names(case.body)
+                case_used = _stmt_names(case.body)
+                used |= case_used
+                # a case reads the state before the transition function (env, never
+                # another case's stage), so what it writes depends on what it reads
+                for target in s.reads(names_):
+                    deps.setdefault(target, set()).update(s.reads(case_used))
         writes = s.reads(written)
         reads = s.reads(used)
+        # a target no case of a combination writes keeps its value (its own key)
+        dep_of = {w: tuple(sorted(deps.get(w, set()) | {w})) for w in writes}
         self.free_forks[name] = Step((), writes, _any(writes))
         inputs = len(s.model.inputs)
         # the inputs the behaviour's cases split (rssm_dsl/semantics/cases.py)
@@ -307,6 +320,8 @@ class _Planner:
             of each combination of the split inputs it leaves open)."""
             new = (*new[:inputs], *(None,) * (inputs - len(new)))
             unknown_inputs = [k for k in split if new[k] is None]
+            if len(unknown_inputs) > MAX_OPEN_INPUTS:
+                return self.free_forks[name]        # too many to try: any value written
             choices: list[list[tuple[Any, tuple[str, ...]]]] = []
             for bits in itertools.product((True, False), repeat=len(unknown_inputs)):
                 fill = dict(zip(unknown_inputs, bits, strict=True))
@@ -332,7 +347,7 @@ class _Planner:
 
             def run(values: Mapping[str, Any]) -> list[Outcome]:
                 return [one(runs, values) for runs in choices]
-            return Step(reads, writes, run)
+            return Step(reads, writes, run, deps=dep_of)
         self.forks[name] = for_combination
 
     def _ends(self, s: _Sub, behaviour: str, stop: bool) -> Step:

@@ -6,7 +6,7 @@ reads."""
 
 from __future__ import annotations
 
-import itertools
+import random
 from pathlib import Path
 
 import pytest
@@ -21,8 +21,13 @@ from tests.conftest import EXAMPLES
 SENDERS = ("a", "b", "c", "d")
 
 
+def _names(inputs: int) -> tuple[str, ...]:
+    return SENDERS[:inputs] if inputs <= len(SENDERS) else tuple(f"x{k}"
+                                                                 for k in range(1, inputs + 1))
+
+
 def _spec(body: str, inputs: int) -> str:
-    names = SENDERS[:inputs]
+    names = _names(inputs)
     ins = "\n".join(f"      input {x}: int from p{x}.c nonblocking" for x in names)
     senders = "\n".join(f"""  agent p{x} {{
     control c @ 10 Hz {{
@@ -115,7 +120,33 @@ def _expected(u: ast.UpdateDecl | None, inputs: tuple[str, ...], values: tuple[b
     return next(i for i, case in enumerate(u.cases) if case.condition is None)
 
 
-def _check(path: Path, subsystem: str) -> int:
+# clauses over 20 of 22 inputs: more than FULL_SPLIT split inputs, so cubes, not 2^20 cases
+BIG = 22
+BIG_BODY = f"""        update out {{
+          case {" and ".join(f"new(x{k})" for k in range(1, 21))}:
+            out := x1
+          case not new(x1) and new(x21):
+            out := x21
+          otherwise:
+            out := 0
+        }}
+        update memory {{
+          case new(x3) or new(x5):
+            m := m + 1
+          otherwise:
+            skip
+        }}"""
+
+
+def big_masks(n: int, count: int) -> list[int]:
+    """All new, none new, each input alone not new / alone new, and random masks."""
+    rnd = random.Random(n)
+    full = (1 << n) - 1
+    return sorted({full, 0, *(full ^ 1 << k for k in range(n)), *(1 << k for k in range(n)),
+                   *(rnd.getrandbits(n) for _ in range(count))})
+
+
+def _check(path: Path, subsystem: str, masks: list[int] | None = None) -> int:
     comp = compile_file(path)
     assert comp.ok and comp.system is not None and comp.program is not None, \
         [d.message for d in comp.diagnostics]
@@ -124,16 +155,27 @@ def _check(path: Path, subsystem: str) -> int:
     inputs = tuple(b.name for b in s.model.inputs)
     decl = next(sd for sd in _subsystem_decls(comp.program) if sd.span == s.model.span)
     checked = 0
+    if masks is None:
+        masks = list(range(1 << len(inputs)))
     for page in comp.hpn.pages.values():  # type: ignore[union-attr]
         if page.kind is not PageKind.PARTIAL or page.owner != subsystem:
             continue
-        group = rt.case_groups[rt.net.place_index[page.in_place]]
-        op_of = {row[1]: rt.net.places[row[1]].name for row in group.table}
-        for values in itertools.product((True, False), repeat=len(inputs)):
-            mask = sum(1 << k for k, v in enumerate(values) if v)
+        p_in = rt.net.place_index[page.in_place]
+        # the case transitions of the page, with their place (as the interpreter's CaseGroup
+        # holds them when the cases are a table, else each with its guard)
+        rows = [(t.index, t.post[0]) for t in rt.net.transitions if t.pre == (p_in,)]
+        group = rt.case_groups.get(p_in)
+        for mask in masks:
+            values = tuple(bool(mask >> k & 1) for k in range(len(inputs)))
             s.new.mask = mask
-            _, place, _, _ = group.table[group.select(mask)]
-            op = comp.hpn.places[op_of[place]].operation  # type: ignore[union-attr]
+            enabled = [place for t, place in rows
+                       if rt.guards[t] is None or rt.guards[t]()]  # type: ignore[misc]
+            # exactly one case is enabled, and the case group (if any) picks that one
+            assert len(enabled) == 1, (page.id, values, enabled)
+            place = enabled[0]
+            if group is not None:
+                assert group.table[group.select(mask)][1] == place
+            op = comp.hpn.places[rt.net.places[place].name].operation  # type: ignore[union-attr]
             assert op is not None and op.behaviour is not None and op.case is not None
             beh = s.model.behaviour(op.behaviour)
             pf = next(f for f in beh.functions if f.target == op.target)
@@ -144,10 +186,6 @@ def _check(path: Path, subsystem: str) -> int:
             got = case.source_case
             assert got == want or (want is None and got in (None, 0)), \
                 (page.id, values, got, want)
-            # the guards of the case transitions agree: exactly that case is enabled
-            enabled = [row for row in group.table
-                       if rt.guards[row[0]] is None or rt.guards[row[0]]()]  # type: ignore[misc]
-            assert [row[1] for row in enabled] == [place], (page.id, values)
             checked += 1
     return checked
 
@@ -174,6 +212,21 @@ def test_the_case_run_is_the_full_expansions_for_every_new_combination(
     path.write_text(_spec(body, inputs), encoding="utf-8")
     # two partial functions (out, memory), each tried with every one of the 2^nu combinations
     assert _check(path, "hub.c") == 2 * 2 ** inputs
+
+
+def test_clauses_over_twenty_inputs_give_the_cases_they_decide(tmp_path: Path) -> None:
+    """Beyond FULL_SPLIT split inputs a function has one case per decided cube: the chain of
+    a 20-literal conjunction gives 22 cases, not 2^20, and each new() combination still runs
+    the full expansion's clause."""
+    path = tmp_path / "big.rssm"
+    path.write_text(_spec(BIG_BODY, BIG), encoding="utf-8")
+    comp = compile_file(path)
+    assert comp.ok and comp.system is not None
+    hub = next(s for a in comp.system.agents for s in a.subsystems if a.name == "hub")
+    out, memory = hub.behaviours[0].functions
+    assert len(out.cases) == 22 and len(memory.cases) == 3
+    masks = big_masks(BIG, 300)
+    assert _check(path, "hub.c", masks) == 2 * len(masks)
 
 
 def test_the_paper_example_too() -> None:

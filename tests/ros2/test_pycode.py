@@ -233,3 +233,31 @@ def test_the_row_a_node_computes_is_the_rule_of_rssm_core(split: tuple[int, ...]
         assert len(covering) == 1
         assert sum(1 << i for i, v in enumerate(x for x in covering[0] if x is not None)
                    if v) == row
+
+
+def test_a_node_picks_the_case_the_interpreter_picks_beyond_the_table_form(
+        tmp_path: Path) -> None:
+    """Clauses over 20 inputs: the cases are cubes (rssm_dsl/semantics/cases.py), the node picks
+    the first whose fixed inputs match new(x), which is the one case covering the mask."""
+    from tests.interp.test_case_rule import BIG, BIG_BODY, _spec, big_masks
+
+    spec = tmp_path / "big.rssm"
+    spec.write_text(_spec(BIG_BODY, BIG), encoding="utf-8")
+    comp = compile_file(spec)
+    assert comp.ok and comp.system is not None and comp.hpn is not None
+    system = comp.system
+    agent = next(a for a in system.agents if a.name == "hub")
+    sub = agent.subsystems[0]
+    ns, view = generated_module(system, comp.hpn, sub, agent.name, agent.designator,
+                                SpecValues(system), tmp_path)
+    picks = [line.split("r.partial(", 1)[1].rsplit(", st, stage)", 1)[0]
+             for line in view.behaviours[0].iterate if "r.partial(" in line]
+    functions = sub.behaviours[0].functions
+    assert len(picks) == len(functions)
+    for pf, pick in zip(functions, picks, strict=True):
+        assert not case_rule.uniform([c.new for c in pf.cases])
+        for mask in big_masks(BIG, 200):
+            values = [bool(mask >> k & 1) for k in range(BIG)]
+            varpi, _ = eval(pick, {**ns, "mask": mask})
+            covering = [c.index for c in pf.cases if case_rule.covers(c.new, values)]
+            assert covering == [varpi], (pf.target, mask)
