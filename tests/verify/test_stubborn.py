@@ -180,3 +180,21 @@ def test_proviso_makes_the_reduced_graph_see_the_ignored_process() -> None:
                                    for_progress=True)
     assert with_proviso.states >= plain.states
     assert with_proviso.graph is not None and plain.graph is None
+
+
+def test_up_set_finds_an_unsafe_firing_only_an_interleaving_reaches() -> None:
+    # A marks x and takes it back; B marks x after a first step of its own. x is doubled
+    # only when B's second step comes while A holds x: lone transitions fired one at a time
+    # (A's first, being lower) run A past it unless the up-set brings x's producers
+    b = NetBuilder("upset2")
+    b.place("a0", marked=True)
+    b.place("b0", marked=True)
+    b.transition("A.mark", ["a0"], ["a1", "x"])
+    b.transition("A.take", ["a1", "x"], ["a2"])
+    b.transition("B.step", ["b0"], ["b1"])
+    b.transition("B.mark", ["b1"], ["b2", "x"])
+    net = b.build()
+    nb = NetBits.of(net)
+    assert explore_full(nb).unsafe is not None
+    assert explore_reduced(nb, to_mask(place_invariants(net).safe_places)).unsafe is not None
+    check_same_verdicts(net)
