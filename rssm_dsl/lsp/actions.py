@@ -111,8 +111,12 @@ class Fixer:
         inputs = tuple(b.name for b in sub.buffers if b.direction is ast.Direction.INPUT)
         conditions: list[ast.Expr] = [c.condition for c in u.cases if c.condition is not None]
         missing: list[str] = []
-        # over the inputs the behaviour's case clauses read, as E501 reports them
-        for combo in case_rule.combinations(split_inputs(bd.updates, inputs), len(inputs)):
+        # over the inputs the behaviour's case clauses read, as E501 reports them (beyond
+        # FULL_SPLIT of them: only the `otherwise:` fix, no enumeration)
+        split = split_inputs(bd.updates, inputs)
+        combos = (case_rule.combinations(split, len(inputs))
+                  if len(split) <= case_rule.FULL_SPLIT else [])
+        for combo in combos:
             covered = False
             for cond in conditions:
                 try:
