@@ -22,10 +22,12 @@ function's cases fix different inputs; the backends read a case as "new(x) of th
 fixes equal its combination" (:func:`covers`), which holds for both forms.
 
 A case's combination is written per input of the subsystem: ``True`` (new), ``False`` (not
-new), ``None`` (not split: any). Cases are numbered as the paper's Eq. 5 numbers them, over
-the split inputs: varpi = 1 is "all new", the first split input varies fastest. At run time
-new(x) of all the inputs is a bit mask (bit k: input k, rssm_core.iteration.NewFlags); the
-case it selects is :func:`case_number` of the mask.
+new), ``None`` (not split: any). In the paper's form cases are numbered as Eq. 5 numbers
+them, over the split inputs: varpi = 1 is "all new", the first split input varies fastest;
+cubes are numbered in the order of the decision (new before not new). At run time new(x) of
+all the inputs is a bit mask (bit k: input k, rssm_core.iteration.NewFlags); the case it
+selects is the one whose combination :func:`covers` it (in the paper's form, the case numbered
+:func:`case_number` of the mask).
 """
 
 from __future__ import annotations
