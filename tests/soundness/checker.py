@@ -113,7 +113,14 @@ class SpecResult:
     ending: frozenset[str] = frozenset()   # subsystems with a switch to `end`
 
     def known(self, d: Disagreement) -> str | None:
-        """The known bug (``KNOWN_BUGS``) that explains ``d``, if any."""
+        """The known bug (``KNOWN_BUGS``) that explains ``d``, if any. When a property's
+        verdict is disputed, its counterexample's failed replay is explained (or not) with
+        that dispute."""
+        if d.what.startswith("replay property "):
+            name = d.what.removeprefix("replay property ")
+            for x in self.disagreements:
+                if x.what == f"property {name}":
+                    return known_bug(x, self.outcomes, self.ending)
         return known_bug(d, self.outcomes, self.ending)
 
     @property
@@ -131,6 +138,9 @@ KNOWN_BUGS = {
                            "transition function; the interpreter commits it at the join",
     "ended-loses-progress": "ends_by_design.rssm: a subsystem that ends by a switch to `end` "
                             "whose guard reads tracked values is reported as losing progress",
+    "slice-property-value": "slice_property_value.rssm: a property checked on a blocking "
+                            "group's slice is reported violated on a value the slice's "
+                            "environment wrote and the whole net never does",
     "limit-in-property-lasso": "limit_in_property_lasso.rssm: a limit reached while userprops "
                                "builds a response property's lasso raises LimitReached out "
                                "of verify()",
@@ -148,6 +158,10 @@ def known_bug(d: Disagreement, outcomes: Mapping[str, Outcome],
               ending: frozenset[str]) -> str | None:
     if d.what.startswith("replay property") and MID_FUNCTION in d.detail:
         return "property-cx-at-fork"
+    if d.what.startswith("property ") and f"{PROPS_WHOLE}=True" in d.detail:
+        others = [x for x in d.detail.split(", ") if not x.startswith(PROPS_WHOLE)]
+        if others and all(x.endswith("=False") for x in others):
+            return "slice-property-value"
     if d.what == "progress lost":
         sets = [o.lost for o in outcomes.values() if o.progress_ok is False]
         if sets and all(s - min(sets, key=len) <= ending for s in sets):
