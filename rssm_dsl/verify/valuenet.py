@@ -94,7 +94,7 @@ class _Values:
         while todo:
             x = todo.pop()
             for s in writers.get(x, []):
-                for r in s.reads:
+                for r in s.reads if s.deps is None else s.deps.get(x, s.reads):
                     if r in present and r not in want:
                         want.add(r)
                         todo.append(r)
