@@ -48,7 +48,7 @@ from collections.abc import Collection
 from typing import TYPE_CHECKING
 
 from rssm_core.records import dataclass
-from rssm_dsl.hpn.flat import FlatNet, FlatTransition
+from rssm_dsl.hpn.flat import FlatNet, FlatTransition, Role
 from rssm_dsl.verify.budget import Budget
 from rssm_dsl.verify.compose.check import ComposeResult, compose_check
 from rssm_dsl.verify.cover import one_token_semiflows
@@ -67,6 +67,7 @@ from rssm_dsl.verify.report import (
 )
 from rssm_dsl.verify.sliced import verify_sliced
 from rssm_dsl.verify.slicing import blocking_groups
+from rssm_dsl.verify.stalls import StallTest
 from rssm_dsl.verify.statespace import Graph, ProgressCallback, SearchResult, Trace, explore_full
 from rssm_dsl.verify.stubborn import explore_reduced
 from rssm_dsl.verify.valuenet import track_values
@@ -77,6 +78,7 @@ if TYPE_CHECKING:
 REDUCTIONS = ("auto", "on", "off", "compositional")
 SMALL_NET = 400        # places: below, the minimal semiflows are always enumerated
 SLICES_SHARE = 2 / 3   # of the time left, for the sliced verification (the rest: whole net)
+ABSTRACT_SHARE = 1 / 3  # of the time left, for the pass with the conditions as free choices
 
 
 @dataclass(frozen=True)
@@ -103,6 +105,8 @@ class VerifyOptions:
     fairness: str = "strong"             # progress: "strong" or "weak" (report.FAIRNESS)
     values_first: bool = True            # ... only once the conditions as free choices
     #                                      gave a violation (verify_with_values)
+    stall_shortcut: bool = True          # one blocking group of every subsystem that stalls
+    #                                      together: progress from deadlock freedom
 
     def __post_init__(self) -> None:
         if self.fairness not in FAIRNESS:
@@ -115,13 +119,11 @@ class VerifyOptions:
 
 def verify(net: FlatNet, options: VerifyOptions | None = None) -> VerifyReport:
     opts = options or VerifyOptions()
-    if opts.values is not None and opts.values_first:
-        if opts.budget is None:
-            opts = dataclasses.replace(opts, budget=Budget(opts.time_limit, opts.max_memory))
-        return _with_properties(net, opts, _abstraction_first(net, opts))
+    groups, decided = _first_steps(net, opts)
+    if decided is not None:
+        return decided
     if opts.slicing and opts.reduction == "auto":
-        with _named(opts.budget, "the slicing"):
-            groups = blocking_groups(net)
+        groups = _groups(net, opts, groups)
         if len(groups) > 1:
             budget = (opts.budget if opts.budget is not None
                       else Budget(opts.time_limit, opts.max_memory))
@@ -250,6 +252,72 @@ def verify(net: FlatNet, options: VerifyOptions | None = None) -> VerifyReport:
     )
 
 
+def _groups(net: FlatNet, opts: VerifyOptions,
+            known: list[tuple[str, ...]] | None = None) -> list[tuple[str, ...]]:
+    """The blocking groups (``known`` when already computed)."""
+    if known is not None:
+        return known
+    with _named(opts.budget, "the slicing"):
+        return blocking_groups(net)
+
+
+def _first_steps(net: FlatNet, opts: VerifyOptions,
+                 ) -> tuple[list[tuple[str, ...]] | None, VerifyReport | None]:
+    """The blocking groups (when computed), and the report when it is decided here: the
+    finite values tracked only where they matter (``_abstraction_first``), or every
+    subsystem stalling together (``_stalls_as_one``: the deadlock-only check decides
+    progress)."""
+    if opts.values is not None and opts.values_first:
+        if opts.budget is None:
+            opts = dataclasses.replace(opts, budget=Budget(opts.time_limit, opts.max_memory))
+        return None, _with_properties(net, opts, _abstraction_first(net, opts))
+    # (a slice, verified with slicing off, has its environment: stalls.py's argument for
+    # it is the sliced verification's own)
+    if not (opts.check_progress and opts.fairness == "strong" and opts.stall_shortcut
+            and opts.slicing):
+        return None, None
+    groups = _groups(net, opts)
+    if not _stalls_as_one(net, groups):
+        return groups, None
+    # the deadlock-only check: the full exploration gets the share a sliced net gives its
+    # first try (beyond it, the compositional check, cheap without the per-subsystem
+    # compositions, decides sooner)
+    return groups, _progress_from_deadlocks(net, verify(net, dataclasses.replace(
+        opts, check_progress=False, stall_shortcut=False,
+        auto_full_states=min(opts.auto_full_states, opts.slice_after_states))))
+
+
+def _stalls_as_one(net: FlatNet, groups: list[tuple[str, ...]]) -> bool:
+    """Every subsystem of the net in one blocking group that stalls together (stalls.py):
+    no subsystem can run on once another stops iterating."""
+    if len(groups) != 1 or set(groups[0]) != set(subsystems_of(net)):
+        return False
+    return StallTest(net).together(groups[0])
+
+
+def _progress_from_deadlocks(net: FlatNet, quick: VerifyReport) -> VerifyReport:
+    """The report of the deadlock-only check of a net whose subsystems all stall together
+    (``_stalls_as_one``), with progress decided by it. The argument of stalls.py with the
+    group the whole net: a subsystem that loses progress at X leaves, once the group has
+    fired what it can (finitely often: nobody iterates for ever without it), a marking where
+    none of the group is enabled and it is unfinished; only the plumbing of the agents and
+    the system remains, which fires finitely often: a deadlock, which is not final."""
+    if quick.verdict is Verdict.VERIFIED_WITHOUT_PROGRESS:
+        checked = tuple(s for s in subsystems_of(net) if any(
+            t.subsystem == s and t.role is Role.ITERATION for t in net.transitions))
+        return dataclasses.replace(
+            quick, verdict=Verdict.VERIFIED, progress_ok=True, progress_requested=True,
+            progress_checked=checked, notes=(
+                *(n for n in quick.notes if "--no-progress-check" not in n),
+                "progress follows from deadlock freedom: every subsystem is in one blocking "
+                "group, and none can run on once another stops iterating, so a loss of "
+                "progress would be a deadlock"))
+    if quick.verdict is Verdict.INCONCLUSIVE and quick.why_undecided is None:
+        return dataclasses.replace(quick, progress_requested=True,
+                                   why_undecided="deadlock freedom not decided")
+    return dataclasses.replace(quick, progress_requested=True)
+
+
 def _named(budget: Budget | None, phase: str) -> contextlib.AbstractContextManager[object]:
     """``budget.running(phase)``, or nothing without a budget."""
     return budget.running(phase) if budget is not None else contextlib.nullcontext()
@@ -280,15 +348,39 @@ def _with_properties(net: FlatNet, opts: VerifyOptions, report: VerifyReport) ->
 def _abstraction_first(net: FlatNet, opts: VerifyOptions) -> VerifyReport:
     """The finite values tracked only where they matter: the conditions as free choices
     first (an over-approximation: what it proves holds), and when that finds a violation,
-    which the data may rule out, again with the values tracked (datanet.py, valuenet.py)."""
+    which the data may rule out, again with the values tracked (datanet.py, valuenet.py).
+
+    The free choices can also make the state space far larger than the system's (robots
+    whose behaviour switches are free are a product of their choices; with the values
+    tracked each one follows its data): the first pass gets ``ABSTRACT_SHARE`` of the time
+    left, and when that cuts it short, the values are tracked with the rest of the budget
+    (sound as well: the tracked net over-approximates the runs on every value it does not
+    track)."""
     assert opts.values is not None
     budget = opts.budget if opts.budget is not None else Budget(opts.time_limit,
                                                                 opts.max_memory)
-    abstract = verify(net, dataclasses.replace(opts, values=None, budget=budget))
-    if (abstract.verdict is not Verdict.VIOLATED or budget.stop is not None
-            or not track_values(track_new(net), opts.values).values):
+    has_values = bool(track_values(track_new(net), opts.values).values)
+    left = budget.remaining()
+    share = (ABSTRACT_SHARE * left if has_values and left is not None else float("inf"))
+    with budget.capped(share) as first:
+        abstract = verify(net, dataclasses.replace(opts, values=None, budget=budget))
+    if not has_values:
+        return dataclasses.replace(abstract, stop=budget.stop)
+    cut_short = first.hit and abstract.verdict is not Verdict.VIOLATED
+    if abstract.verdict is Verdict.VIOLATED and budget.stop is not None:
+        # a limit stopped the run before the values were tracked: what the free choices
+        # found may be ruled out by the data, so it is not reported as a violation
+        return _unconfirmed_abstract(abstract)
+    if not cut_short and (abstract.verdict is not Verdict.VIOLATED
+                          or budget.stop is not None):
         return abstract
-    concrete = verify(net, dataclasses.replace(opts, values_first=False, budget=budget))
+    if cut_short:
+        concrete = _concrete_after_cut(net, opts, budget)
+        return dataclasses.replace(concrete, notes=(
+            f"with the conditions as free choices the verdict was open after "
+            f"{ABSTRACT_SHARE:.0%} of the time ({abstract.why_undecided}); verified again "
+            "with the values tracked", *concrete.notes))
+    concrete = _concrete_after_cut(net, opts, budget)
     if concrete.verdict is Verdict.VIOLATED:
         why = "confirmed with the values tracked"
     elif concrete.verdict is Verdict.INCONCLUSIVE:
@@ -298,6 +390,49 @@ def _abstraction_first(net: FlatNet, opts: VerifyOptions) -> VerifyReport:
     return dataclasses.replace(concrete, notes=(
         f"with the conditions as free choices a violation was found; {why}",
         *concrete.notes))
+
+
+def _concrete_after_cut(net: FlatNet, opts: VerifyOptions, budget: Budget) -> VerifyReport:
+    """The values tracked, after a free-choice pass the time cut short or that found a
+    violation. With ``auto`` on a net that does not slice (one blocking group), the
+    stubborn sets first (half the time left): the free choices' full exploration already
+    overflowed, they find a deadlock without the whole state space, and a net whose
+    subsystems follow their data is where they cut most; then ``auto`` with the rest when
+    they do not decide. A net that slices is verified group by group, as ``auto`` does."""
+    concrete = dataclasses.replace(opts, values_first=False, budget=budget)
+    if opts.reduction != "auto" or (opts.slicing and len(_groups(net, opts)) > 1):
+        return verify(net, concrete)
+    # a small net explored whole first (its dead transitions and unreachable behaviours
+    # come with it), as a sliced net's first try
+    with budget.capped(opts.slice_after_seconds) as cap:
+        whole = verify(net, dataclasses.replace(concrete, reduction="off",
+                                                max_states=opts.slice_after_states))
+    if (whole.verdict is Verdict.VIOLATED or budget.stop is not None
+            or (whole.complete and not cap.hit)):
+        return dataclasses.replace(whole, stop=budget.stop)
+    left = budget.remaining()
+    with budget.capped(left / 2 if left is not None else float("inf")):
+        reduced = verify(net, dataclasses.replace(concrete, reduction="on"))
+    if reduced.verdict is not Verdict.INCONCLUSIVE or budget.stop is not None:
+        return dataclasses.replace(reduced, stop=budget.stop)
+    whole = verify(net, concrete)
+    return dataclasses.replace(whole, notes=(
+        f"with the values tracked, the stubborn sets did not decide within half the time "
+        f"left ({reduced.why_undecided})", *whole.notes))
+
+
+def _unconfirmed_abstract(abstract: VerifyReport) -> VerifyReport:
+    """The free-choice pass's violations, left open: the run stopped before the values
+    were tracked, and the data may rule them out."""
+    return dataclasses.replace(
+        abstract, verdict=Verdict.INCONCLUSIVE,
+        safe=None if abstract.safe is False else abstract.safe,
+        deadlock_free=None if abstract.deadlock_free is False else abstract.deadlock_free,
+        progress_ok=None if abstract.progress_ok is False else abstract.progress_ok,
+        deadlocks=(), deadlock_count=0, unsafe=None, progress=(), progress_lost=(),
+        notes=("with the conditions as free choices a violation was found; the run stopped "
+               "before it could be checked with the values tracked (the data may rule it "
+               "out)", *abstract.notes))
 
 
 def _why_undecided(budget: Budget,
