@@ -53,6 +53,7 @@ from rssm_dsl.verify.report import (
     marking_labels,
     marking_where,
 )
+from rssm_dsl.verify.siphons import STALL, find_stalls, lift_stall, with_stalls
 from rssm_dsl.verify.slicing import (
     OUTSIDE_STATES,
     Channel,
@@ -155,6 +156,11 @@ def _decide(sl: Slice, opts: VerifyOptions, verify: Verifier) -> VerifyReport:
     if small.complete or small.verdict is Verdict.VIOLATED:
         return small
     cap = min(opts.max_states, STUBBORN_STATES)
+    if opts.check_progress and opts.budget is not None:
+        # partial deadlocks first, as empty siphons of the deadlock-only search (siphons.py)
+        stalls = find_stalls(sl, opts.values, opts.budget, cap)
+        if stalls.found:
+            return with_stalls(small, stalls)
     return verify(sl.net, dataclasses.replace(opts, max_states=cap))
 
 
@@ -734,12 +740,19 @@ class _Lifted:
             self.failed.append(Unconfirmed("progress", f"a loss of progress of {s}", group,
                                            "no firing sequence to lift", tried, None))
 
+    def slice_stall(self, sl: Slice, cx: Counterexample) -> None:
+        """A subsystem an empty siphon stops for good in the slice (siphons.py)."""
+        deadlocks, progress = lift_stall(self.net, self.whole, sl, cx)
+        self.deadlocks += deadlocks
+        self.progress += progress
+
     def lift_all(self, sl: Slice, r: VerifyReport) -> None:
         """Every violation of ``sl``'s report ``r``."""
         for cx in r.deadlocks:
             self.lift("a stuck group", self.slice_deadlock, sl, cx)
         for cx in r.progress:
-            self.lift(f"a loss of progress of {cx.subsystem}", self.slice_progress, sl, cx)
+            self.lift(f"a loss of progress of {cx.subsystem}",
+                      self.slice_stall if cx.kind == STALL else self.slice_progress, sl, cx)
         if r.unsafe is not None:
             self.lift("an unsafe firing", self.slice_unsafe, sl, r.unsafe)
 
