@@ -282,9 +282,17 @@ def _first_steps(net: FlatNet, opts: VerifyOptions,
     # the deadlock-only check: the full exploration gets the share a sliced net gives its
     # first try (beyond it, the compositional check, cheap without the per-subsystem
     # compositions, decides sooner)
-    return groups, _progress_from_deadlocks(net, verify(net, dataclasses.replace(
+    quick = verify(net, dataclasses.replace(
         opts, check_progress=False, stall_shortcut=False,
-        auto_full_states=min(opts.auto_full_states, opts.slice_after_states))))
+        auto_full_states=min(opts.auto_full_states, opts.slice_after_states)))
+    if (quick.verdict is Verdict.VIOLATED and quick.complete and quick.method == "full"
+            and (opts.budget is None or opts.budget.stop is None)):
+        # a deadlock in a net explored whole: its progress check costs little more and
+        # says who else loses progress (the deadlock stands whatever it finds)
+        again = verify(net, dataclasses.replace(opts, stall_shortcut=False))
+        if again.verdict is Verdict.VIOLATED:
+            return groups, again
+    return groups, _progress_from_deadlocks(net, quick)
 
 
 def _stalls_as_one(net: FlatNet, groups: list[tuple[str, ...]]) -> bool:
