@@ -103,6 +103,11 @@ def verify_sliced(net: FlatNet, groups: Sequence[tuple[str, ...]], opts: VerifyO
         if check_progress and opts.fairness == "strong" and stalls.together(sl.keep):
             found[i] = _by_deadlocks(sl, quick, budget, verify)
             continue
+        if check_progress and opts.fairness == "strong" and opts.values is None \
+                and stalls.ordered(sl.keep) is not None:
+            # progress by the stall order (stalls.py): the slice's deadlock check decides
+            found[i] = _by_deadlocks(sl, quick, budget, verify, ORDERED)
+            continue
         r = _decide(sl, opts if check_progress else quick, verify)
         if r.verdict is Verdict.INCONCLUSIVE and check_progress and budget.stop is None:
             # progress not decided: at least safeness and deadlocks
@@ -164,8 +169,13 @@ def _decide(sl: Slice, opts: VerifyOptions, verify: Verifier) -> VerifyReport:
     return verify(sl.net, dataclasses.replace(opts, max_states=cap))
 
 
+ORDERED = ("progress follows from deadlock freedom by the stall order: the subsystems whose "
+           "stall stops the whole group by it, then, bottom-up, each whose blocking waits are "
+           "on subsystems proved before, which meet it in every iteration")
+
+
 def _by_deadlocks(sl: Slice, quick: VerifyOptions, budget: Budget,
-                  verify: Verifier) -> VerifyReport:
+                  verify: Verifier, why: str | None = None) -> VerifyReport:
     """A group that stalls together (``stalls``): its slice's deadlock check decides its
     progress too. Explored whole when small; else by stubborn sets and compositionally (one
     composition of the slice, no per-subsystem one), the composition first for a group of
@@ -205,7 +215,7 @@ def _by_deadlocks(sl: Slice, quick: VerifyOptions, budget: Budget,
             t.subsystem == s and t.role is Role.ITERATION for t in sl.net.transitions))
         return dataclasses.replace(
             r, verdict=Verdict.VERIFIED, progress_ok=True, progress_requested=True,
-            progress_checked=checked, notes=(*r.notes, (
+            progress_checked=checked, notes=(*r.notes, why or (
                 "progress follows from deadlock freedom: no subsystem of the group can run "
                 "on once another stops iterating, so a loss of progress would be a deadlock "
                 "of the slice")))
