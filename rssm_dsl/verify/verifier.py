@@ -368,7 +368,10 @@ def _abstraction_first(net: FlatNet, opts: VerifyOptions) -> VerifyReport:
     budget = opts.budget if opts.budget is not None else Budget(opts.time_limit,
                                                                 opts.max_memory)
     has_values = bool(track_values(track_new(net), opts.values).values)
-    left = budget.remaining()
+    # a share of the run's own time left, not of a shorter first try's (the falsifier gives
+    # the engines their first second under a cap: the first pass keeps all of it)
+    left = (None if budget.time_limit is None
+            else max(0.0, budget.time_limit - budget.elapsed()))
     share = (ABSTRACT_SHARE * left if has_values and left is not None else float("inf"))
     with budget.capped(share) as first:
         abstract = verify(net, dataclasses.replace(opts, values=None, budget=budget))
