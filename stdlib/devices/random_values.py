@@ -10,7 +10,6 @@ device to it for its random runs (docs/verify.md, "Simulation as a falsifier").
 
 from __future__ import annotations
 
-import json
 import random
 import zlib
 from collections.abc import Callable, Mapping
@@ -19,6 +18,8 @@ from typing import Any
 from rssm_dsl.interp.device import DeviceBase, DeviceConfigError, DeviceSpec
 from rssm_dsl.interp.values import ValueTypeError, converter
 from rssm_dsl.semantics.types import ArrayT, RecordT, Type, finite_domain
+
+from .constant import values_option
 
 Draw = Callable[[random.Random], Any]
 
@@ -75,18 +76,8 @@ class RandomDevice(DeviceBase):
             draw = _drawer(t, spec.initial[name])
             if draw is not None:
                 draws[name] = draw
-        text = spec.options.get("values")
-        if text is not None:
-            try:
-                given = json.loads(text)
-            except json.JSONDecodeError as e:
-                raise DeviceConfigError(f"option values is not JSON: {e.msg}") from e
-            if not isinstance(given, dict):
-                raise DeviceConfigError("option values must be a JSON object {output: values}")
-            for name, value in given.items():
-                if name not in spec.outputs:
-                    raise DeviceConfigError(f"{spec.id} has no output buffer '{name}'")
-                draws[name] = _choices(name, spec.outputs[name], value)
+        for name, value in values_option(spec).items():
+            draws[name] = _choices(name, spec.outputs[name], value)
         self.draws = draws
 
     def measure(self) -> Mapping[str, Any]:
