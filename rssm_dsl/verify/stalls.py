@@ -254,7 +254,12 @@ class StallTest:
         done = full if consumes else empty
         steps = [t for t in own if pair & set(t.pre) or pair & set(t.post)]
         completes = {t.index for t in steps if done in t.post and done not in t.pre}
-        touches = {t.index for t in steps if pair & set(t.pre)}
+        # what takes the waiting end's place away (a test arc leaves it)
+        touches = {t.index for t in steps if done in t.pre and done not in t.post}
+        # while r waits, the other place of the pair stays marked until q completes, so
+        # q's steps that need ``done`` cannot fire before it (an overwriting send, a receive
+        # finding nothing new)
+        idle = {t.index for t in steps if done in t.pre}
         if not completes:
             return False
 
@@ -277,7 +282,7 @@ class StallTest:
 
         iters = set(self.iterations.get(q, ()))
         after_iter = {p for t in iters for p in net.transitions[t].post if p in mine}
-        if reach(after_iter, completes | iters) & iters:
+        if reach(after_iter, completes | iters | idle) & iters:
             return False                # an iteration without the channel's part
         after_done = {p for t in completes for p in net.transitions[t].post if p in mine}
         return not reach(after_done, iters) & touches
