@@ -25,12 +25,12 @@ from rssm_core.firing import Net
 from rssm_dsl.hpn.flat import FlatNet, Role
 from rssm_dsl.hpn.flatten import flatten
 from rssm_dsl.pipeline import compile_file
-from rssm_dsl.verify import VerifyOptions, verify
+from rssm_dsl.verify import VerifyOptions, siphons, verify
 from rssm_dsl.verify import sliced as sliced_mod
 from rssm_dsl.verify.budget import Budget
 from rssm_dsl.verify.report import VerifyReport
 from rssm_dsl.verify.siphons import SiphonTest, find_stalls
-from rssm_dsl.verify.sliced import verify_sliced
+from rssm_dsl.verify.sliced import _Whole, verify_sliced
 from rssm_dsl.verify.slicing import blocking_groups, slice_net
 from rssm_dsl.verify.stalls import StallTest
 
@@ -164,6 +164,15 @@ def test_the_siphon_search_finds_the_planted_stall(tmp_path: Path) -> None:
     sl = slice_net(net, max(blocking_groups(net), key=len))
     found = find_stalls(sl, None, Budget(60.0), 10_000)
     assert {c.subsystem for c in found.found} == {"a1.c", "a2.c"}
+    # the same from the deadlock-only stubborn-set search's graph, without the runs
+    searched = siphons._search(sl, None, Budget(60.0), 10_000)
+    assert searched.complete
+    assert {c.subsystem for c in searched.found} == {"a1.c", "a2.c"}
+    whole = _Whole(net, None)
+    for cx in searched.found:
+        _, progress = siphons.lift_stall(net, whole, sl, cx)
+        assert [c.subsystem for c in progress] == [cx.subsystem]
+        _replays(net, (*progress[0].steps, *progress[0].to_cycle, *progress[0].cycle))
 
 
 def test_the_siphon_search_claims_nothing_on_small_nets() -> None:
