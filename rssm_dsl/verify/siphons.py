@@ -155,10 +155,14 @@ def find_stalls(sl: Slice, values: ValuePlan | None, budget: Budget,
     """The subsystems of ``sl``'s group that an empty siphon stops for good: first along
     a few runs of the slice (``probe``), then in the markings of the deadlock-only
     stubborn-set search of the slice (the module docstring)."""
-    found = probe(sl, budget)
-    if found:
-        return StallSearch(tuple(found), 0, False)
-    return _search(sl, values, budget, min(max_states, SEARCH_STATES))
+    try:
+        found = probe(sl, budget)
+        if found:
+            return StallSearch(tuple(found), 0, False)
+        return _search(sl, values, budget, min(max_states, SEARCH_STATES))
+    except LimitReached:
+        # the budget keeps the stop (the run's, or a cap's): the caller sees it
+        return StallSearch((), 0, False)
 
 
 def probe(sl: Slice, budget: Budget, steps: int = PROBE_STEPS,

@@ -203,3 +203,14 @@ def test_planted_rings_are_violated_with_a_lasso_for_every_loss(tmp_path: Path, 
     assert not r.unconfirmed
     for cx in r.progress:
         _replays(net, (*cx.steps, *cx.to_cycle, *cx.cycle, *cx.cycle))
+
+
+def test_a_cap_reached_in_the_siphon_search_stops_only_the_search(tmp_path: Path) -> None:
+    """A first try under a cap (the falsifier's first second) that ends in the siphon
+    search: the search returns empty-handed, the cap is hit, the run's own stop is clear."""
+    net = _system(tmp_path, "pair_and_server", 3, SYSTEMS[0][2])
+    sl = slice_net(net, max(blocking_groups(net), key=len))
+    budget = Budget(60.0)
+    with budget.capped(0.0) as cap:
+        found = find_stalls(sl, None, budget, 10_000)
+    assert not found.found and cap.hit and budget.stop is None
