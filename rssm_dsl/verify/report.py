@@ -525,7 +525,8 @@ def render_text(report: VerifyReport, max_invariants: int = 20) -> str:
     for inv in r.invariants[:max_invariants]:
         out.append(f"  {inv.text}")
     if n > max_invariants:
-        out.append(f"  ... {n - max_invariants} more (--show-invariants lists them)")
+        out.append(f"  ... {n - max_invariants} more (--show-invariants lists them)"
+                   if max_invariants else "  (--show-invariants lists them)")
     if r.uncovered_places:
         shown = ", ".join(r.uncovered_places[:10])
         more = f" and {len(r.uncovered_places) - 10} more" if len(r.uncovered_places) > 10 else ""
