@@ -340,8 +340,10 @@ def _with_properties(net: FlatNet, opts: VerifyOptions, report: VerifyReport) ->
     if system is None or not system.properties:
         return report
     assert opts.budget is not None
+    start = time.monotonic()
     results = check_properties(net, system, opts.values, opts.budget, opts.max_states,
                                opts.reduction)
+    spent = time.monotonic() - start        # the report's seconds count the properties too
     verdict, why = report.verdict, report.why_undecided
     if any(r.holds is False for r in results):
         verdict = Verdict.VIOLATED
@@ -350,7 +352,8 @@ def _with_properties(net: FlatNet, opts: VerifyOptions, report: VerifyReport) ->
         verdict = Verdict.INCONCLUSIVE
         why = next(f"property {r.name}: {r.why}" for r in results if r.holds is None)
     return dataclasses.replace(report, verdict=verdict, why_undecided=why,
-                               user_properties=results, stop=opts.budget.stop)
+                               user_properties=results, stop=opts.budget.stop,
+                               seconds=report.seconds + spent)
 
 
 def _abstraction_first(net: FlatNet, opts: VerifyOptions) -> VerifyReport:
@@ -367,7 +370,8 @@ def _abstraction_first(net: FlatNet, opts: VerifyOptions) -> VerifyReport:
     assert opts.values is not None
     budget = opts.budget if opts.budget is not None else Budget(opts.time_limit,
                                                                 opts.max_memory)
-    has_values = bool(track_values(track_new(net), opts.values).values)
+    with budget.running("the data tracking"):
+        has_values = bool(track_values(track_new(net), opts.values).values)
     # a share of the run's own time left, not of a shorter first try's (the falsifier gives
     # the engines their first second under a cap: the first pass keeps all of it)
     left = (None if budget.time_limit is None
