@@ -8,8 +8,11 @@ Definition. ``s`` *loses progress* when some reachable marking ``m`` has all thr
 
 1. ``s`` is not finished in ``m``: some place of ``s`` marked in ``m`` can still lead to an
    ITERATION transition of ``s`` through ``s``'s own transitions (structurally, ignoring the
-   other input places). A subsystem whose token has gone past its last iteration (to its
-   output place) is finished, not stuck.
+   other input places, except the places of tracked values that are empty in ``m`` and
+   that no transition ever marks: a variant needing one of those can never fire again, e.g.
+   a switch's variant for a value that ``m`` has left for good; ``unfinished_states``). A
+   subsystem whose token has gone past its last iteration (to its output place) is
+   finished, not stuck.
 2. No firing sequence from ``m`` fires an ITERATION transition of ``s``: whatever the
    scheduling and whatever the data (conditions are free choices), ``s`` never completes an
    iteration again.
@@ -78,9 +81,11 @@ def subsystems_of(net: FlatNet) -> list[str]:
     return list(seen)
 
 
-def live_places(net: FlatNet, subsystem: str) -> int:
-    """Places of ``subsystem`` from which its own transitions can reach an ITERATION one."""
-    own = [t for t in net.transitions if t.subsystem == subsystem]
+def live_places(net: FlatNet, subsystem: str, gone: frozenset[int] = frozenset()) -> int:
+    """Places of ``subsystem`` from which its own transitions can reach an ITERATION one;
+    with ``gone``, only through transitions that need none of those places (places empty
+    for good in the marking at hand, see ``fading_places``)."""
+    own = [t for t in net.transitions if t.subsystem == subsystem and gone.isdisjoint(t.pre)]
     owned = {p.index for p in net.places if p.subsystem == subsystem}
     if not owned:   # places not attributed: those its transitions touch, except shared ones
         owned = {p for t in own for p in (*t.pre, *t.post)
@@ -99,6 +104,61 @@ def live_places(net: FlatNet, subsystem: str) -> int:
     for p in live:
         mask |= 1 << p
     return mask
+
+
+MAX_FADING = 4      # fading places judged per marking (2^k live sets); the rest count as
+#                     markable, which only makes more markings unfinished (the safe side)
+
+
+def fading_places(net: FlatNet, subsystem: str, within: int = -1) -> tuple[int, ...]:
+    """Input places of ``subsystem``'s transitions that no transition ever marks (none has
+    the place in its post set and not in its pre set): once such a place is empty it stays
+    empty, and the transitions needing it are dead. The value places of a tracked value
+    that is never written back to one of its values (valuenet.py) are the usual case: a
+    ``switch ... otherwise`` variant for ``flag = false`` once ``flag`` is true for good.
+    Only value places count (any other input place is ignored, as point 1 says: a
+    subsystem waiting for good on a place nobody marks is stuck, not finished). At most
+    ``MAX_FADING`` of them (the first in place order), of the mask ``within``."""
+    marks = {p for t in net.transitions for p in t.post if p not in t.pre}
+    out: dict[int, None] = {}
+    for t in net.transitions:
+        if t.subsystem == subsystem:
+            for p in t.pre:
+                if p not in marks and within >> p & 1 and _is_value(net, p):
+                    out.setdefault(p)
+    return tuple(sorted(out))[:MAX_FADING]
+
+
+def _is_value(net: FlatNet, p: int) -> bool:
+    """A place of a tracked value (valuenet.py)."""
+    return (net.places[p].channel or "").startswith("value ")
+
+
+def unfinished_masks(net: FlatNet, subsystem: str,
+                     fading: tuple[int, ...]) -> tuple[int, ...]:
+    """``live_places`` for each subset of ``fading`` gone: entry ``i`` has gone the places
+    ``fading[j]`` with bit ``j`` of ``i`` set. A marking ``m`` leaves ``s`` unfinished iff
+    it marks a place of the entry whose bits are the places of ``fading`` empty in ``m``."""
+    return tuple(live_places(net, subsystem,
+                             frozenset(p for j, p in enumerate(fading) if i >> j & 1))
+                 for i in range(1 << len(fading)))
+
+
+def unfinished_states(nb: NetBits, graph: Graph, subsystem: str) -> Bools:
+    """Per state: is ``subsystem`` not finished there (point 1 of the module docstring),
+    judged on the state's whole marking, value places included?"""
+    fading = fading_places(nb.net, subsystem)
+    masks = unfinished_masks(nb.net, subsystem, fading)
+    if not fading:
+        return marked_any(graph, masks[0], nb.nwords)
+    key = np.zeros(graph.size, dtype=np.int64)
+    for j, p in enumerate(fading):
+        key |= (~marked_any(graph, 1 << p, nb.nwords)).astype(np.int64) << j
+    out = np.zeros(graph.size, dtype=np.bool_)
+    for i in np.unique(key).tolist():
+        rows = key == i
+        out |= rows & marked_any(graph, masks[int(i)], nb.nwords)
+    return out
 
 
 def _distinct(nodes: Ints, scratch: I64) -> Ints:
@@ -272,12 +332,12 @@ def _check_subsystems(nb: NetBits, graph: Graph, names: list[str], budget: Budge
         can_iterate = backward_closure(graph, seeds, None, budget)
         stuck = ~can_iterate & ~can_deadlock
         if stuck.any():
-            stuck &= marked_any(graph, live_places(nb.net, s), nb.nwords)
+            stuck &= unfinished_states(nb, graph, s)
         hits = np.flatnonzero(stuck)
         if hits.size:
             violations.append(_lasso(graph, s, int(hits[0]), budget))
         elif weak:
-            unfinished = marked_any(graph, live_places(nb.net, s), nb.nwords)
+            unfinished = unfinished_states(nb, graph, s)
             found = weak_starvation(graph, s, unfinished, is_it, budget)
             if found is not None:
                 violations.append(found)

@@ -52,7 +52,7 @@ from rssm_dsl.verify.compose.order import composition_order
 from rssm_dsl.verify.compose.product import TooLarge, product
 from rssm_dsl.verify.compose.tree import SUBSYSTEM_KINDS, is_fusion, page_tree
 from rssm_dsl.verify.netbits import NetBits, bits
-from rssm_dsl.verify.progress import live_places
+from rssm_dsl.verify.progress import fading_places, unfinished_masks
 
 
 @dataclass
@@ -194,7 +194,20 @@ class _Composer:
                                if t.subsystem == name and t.role is Role.ITERATION)
         check = bool(iterations) and (wanted is None or name in wanted)
         behaviours = _behaviour_places(net, name)
-        observe = (live_places(net, name) if check else 0, *behaviours.values())
+        # "unfinished" judged on the whole local state (progress.unfinished_states): the
+        # live places for each set of the subtree's fading places found empty; observation
+        # 0 has none gone, then the behaviours, the other sets and the fading places (a
+        # fading place outside the subtree is not observed, so counts as markable)
+        subtree = 0
+        for c in range(nodes[k].first, nodes[k].last):
+            own = nodes[c].own
+            if own is not None:
+                subtree |= own.places
+        fading = fading_places(net, name, subtree) if check else ()
+        masks = unfinished_masks(net, name, fading) if check else (0,)
+        observe = (masks[0], *behaviours.values(), *masks[1:],
+                   *(1 << p for p in fading))
+        unfinished = _Unfinished(len(behaviours), len(fading))
         # a behaviour without places of its own is seen by its transitions firing
         placeless = {t.index: (name, t.behaviour) for t in net.transitions
                      if t.subsystem == name and t.behaviour is not None
@@ -220,7 +233,7 @@ class _Composer:
                     res.reached.add(placeless[a])  # type: ignore[arg-type]
         if check:
             res.progress_checked.append(name)
-            if _loses_progress(graph, iterations):
+            if _loses_progress(graph, iterations, unfinished):
                 res.progress_lost.append(name)
 
     # ------------------------------------------------------------------ building blocks
@@ -459,9 +472,29 @@ def _dead(lts: Lts, s: int) -> bool:
     return not lts.out[s] and not lts.flags[s] & (FINAL | SINK)
 
 
-def _loses_progress(graph: Lts, iterations: frozenset[int]) -> bool:
-    """Is there a reachable state where the component's subsystem is unfinished (flag
-    ``OBSERVED``), from which no iteration of it and no deadlock can be reached?"""
+@dataclass(frozen=True)
+class _Unfinished:
+    """Reads "the subsystem is unfinished" off a state's observation flags (the layout of
+    ``Check.inspect``'s ``observe``)."""
+
+    behaviours: int
+    fading: int
+
+    def __call__(self, flags: int) -> bool:
+        gone = 0
+        for j in range(self.fading):
+            bit = 1 + self.behaviours + (1 << self.fading) - 1 + j
+            if not flags & (OBSERVED << bit):
+                gone |= 1 << j
+        live = 0 if gone == 0 else self.behaviours + gone
+        return bool(flags & (OBSERVED << live))
+
+
+def _loses_progress(graph: Lts, iterations: frozenset[int],
+                    unfinished: Callable[[int], bool] = lambda f: bool(f & OBSERVED)) -> bool:
+    """Is there a reachable state where the component's subsystem is unfinished (read off
+    its flags by ``unfinished``), from which no iteration of it and no deadlock can be
+    reached?"""
     n = graph.size
     preds: list[list[int]] = [[] for _ in range(n)]
     sources: list[int] = []
@@ -474,7 +507,7 @@ def _loses_progress(graph: Lts, iterations: frozenset[int]) -> bool:
             sources.append(s)
     can_dead = _backward([s for s in range(n) if _dead(graph, s)], preds)
     can_iterate = _backward(sources, preds)
-    return any(graph.flags[s] & OBSERVED and not can_dead[s] and not can_iterate[s]
+    return any(unfinished(graph.flags[s]) and not can_dead[s] and not can_iterate[s]
                for s in range(n))
 
 
