@@ -49,7 +49,7 @@ from typing import TYPE_CHECKING
 
 from rssm_core.records import dataclass
 from rssm_dsl.hpn.flat import FlatNet, FlatTransition, Role
-from rssm_dsl.verify.budget import Budget
+from rssm_dsl.verify.budget import Budget, LimitReached
 from rssm_dsl.verify.compose.check import ComposeResult, compose_check
 from rssm_dsl.verify.cover import one_token_semiflows
 from rssm_dsl.verify.datanet import track_new
@@ -143,7 +143,13 @@ def verify(net: FlatNet, options: VerifyOptions | None = None) -> VerifyReport:
             # the slices get two thirds of the time left: the whole net may need the rest
             with budget.capped(SLICES_SHARE * left if left is not None else float("inf")), \
                     budget.running("the sliced verification"):
-                sliced = verify_sliced(net, groups, inner, budget, verify)
+                try:
+                    sliced = verify_sliced(net, groups, inner, budget, verify)
+                except LimitReached as e:   # a limit no phase of the slices caught (a
+                    #                         lift's search): the slices decide nothing
+                    sliced = dataclasses.replace(
+                        whole, verdict=Verdict.INCONCLUSIVE, notes=(),
+                        why_undecided=f"the sliced verification stopped: {e.stop.message}")
             if sliced.verdict is not Verdict.INCONCLUSIVE or budget.stop is not None:
                 return dataclasses.replace(sliced, stop=budget.stop)
             # a group the stubborn sets do not decide (rings of many alike subsystems):
