@@ -7,7 +7,10 @@ conditions read tracked (datanet.py, valuenet.py). The slice can do all its grou
 the whole net, and the group's moves replay in the whole net with the rest standing still
 (the argument the progress check rests on), so a property of the group's subsystems holds in
 the whole net when it holds in the slice; a violation found in the slice is replayed in the
-whole net before it is reported.
+whole net before it is reported. With values tracked, the slice's environment fills its free
+channels with any value, which the replay of tokens does not check: such a violation is
+checked again on the whole net (``_check_batch``), whose verdict is reported. A limit of the
+run reached while a property is judged leaves it (and those after it) not decided.
 
 What: the states of the slice are explored once for all the properties on it, by the engine
 ``reduction`` names (the one the deadlock check uses): "off", the full breadth-first search of
@@ -46,6 +49,7 @@ property undecided there: it is reported as not decided, never as holding.
 
 from __future__ import annotations
 
+import dataclasses
 from collections.abc import Sequence
 from typing import Any
 
@@ -55,7 +59,7 @@ from rssm_core.records import dataclass
 from rssm_dsl.hpn.flat import FlatNet, FlatTransition
 from rssm_dsl.semantics.model import Property, System
 from rssm_dsl.semantics.properties import Formula, InBehaviour, UnknownValue, Value
-from rssm_dsl.verify.budget import Budget
+from rssm_dsl.verify.budget import Budget, LimitReached
 from rssm_dsl.verify.cover import one_token_semiflows
 from rssm_dsl.verify.datanet import TrackedNet, track_new
 from rssm_dsl.verify.dataplan import ValuePlan
@@ -89,11 +93,43 @@ def check_properties(net: FlatNet, system: System, plan: ValuePlan | None,
                     prop.name, prop.kind, _text(prop), None, None,
                     f"not checked: {budget.stop.message}", prop.span)
             continue
-        where = _explore(net, keep, [f for _, fs in batch for f in fs], plan, budget,
-                         max_states, reduction)
-        for prop, formulas in batch:
-            results[prop.name] = _judge(net, prop, formulas, where, budget)
+        try:
+            _check_batch(net, batch, keep, plan, budget, max_states, reduction, results)
+        except LimitReached as e:     # a limit in a closure or a lasso: what is left of
+            for prop, _ in batch:     # the batch is not decided (the report's stop says why)
+                if prop.name not in results:
+                    results[prop.name] = PropertyResult(
+                        prop.name, prop.kind, _text(prop), None, None,
+                        f"not decided: {e.stop.message}", prop.span)
     return tuple(results[p.name] for p in system.properties)
+
+
+def _check_batch(net: FlatNet, batch: list[tuple[Property, list[Formula]]],
+                 keep: tuple[str, ...], plan: ValuePlan | None, budget: Budget,
+                 max_states: int, reduction: str, results: dict[str, PropertyResult]) -> None:
+    """The properties of ``batch`` (all on the slice of ``keep``) into ``results``.
+
+    A violation found on a slice whose environment writes values (``plan``: values are
+    tracked) is not reported on the slice's word: the environment of a free channel may
+    have written a value the whole net never sends. Those properties are checked again on
+    the whole net, whose verdict (with its own counterexample) is the one reported; not
+    decided when the whole net is not explored to the end."""
+    ex = _explore(net, keep, [f for _, fs in batch for f in fs], plan, budget,
+                  max_states, reduction)
+    found = {prop.name: _judge(net, prop, formulas, ex, budget) for prop, formulas in batch}
+    again = [(prop, fs) for prop, fs in batch
+             if ex.slice is not None and plan is not None and found[prop.name].holds is False]
+    if again:
+        whole = _explore(net, tuple(net.subsystems), [f for _, fs in again for f in fs], plan,
+                         budget, max_states, reduction)
+        for prop, formulas in again:
+            r = _judge(net, prop, formulas, whole, budget)
+            if r.holds is None:
+                r = dataclasses.replace(r, why=f"not decided: violated in {ex.where}, whose "
+                                        f"environment may send values the whole net does "
+                                        f"not, and in the whole net {r.why}")
+            found[prop.name] = r
+    results.update(found)
 
 
 AUTO_FULL_STATES = 1_000_000    # "auto": the full search's share before the stubborn sets
@@ -176,7 +212,11 @@ def _judge(net: FlatNet, prop: Property, formulas: list[Formula], ex: _Explored,
     bad &= ~unknown
     states = f"{graph.size:,} states of {where}; {ex.how}"
     if bad.any():
-        state = int(np.flatnonzero(bad)[0])
+        # the state shown: one where no subsystem whose values the property reads stands
+        # inside its transition function, if there is one (``_settled``)
+        settled = bad & _settled(graph, tracked, {a.subsystem_id for f in formulas
+                                                  for a in f.atoms if isinstance(a, Value)})
+        state = int(np.flatnonzero(settled if settled.any() else bad)[0])
         to_cycle: tuple[int, ...] = ()
         cycle: tuple[int, ...] = ()
         if prop.kind != "always":       # the lasso: on, Q never again
@@ -340,6 +380,42 @@ def visible_transitions(net: FlatNet, atoms: Sequence[Any]) -> int:
         if any(bool(pre & m) != bool(post & m) for m in masks):
             out |= 1 << t.index
     return out
+
+
+def _settled(graph: Graph, tracked: TrackedNet, subsystems: set[str]) -> Any:
+    """Per state: none of ``subsystems`` stands between the fork and the join of the
+    transition function P^f of a behaviour (``t[j,v,w,f,in]``, ``t[j,v,w,f,out]``). Inside,
+    the values tracked are already the function's results (dataplan.py applies it at the
+    fork) while the interpreter and the ROS 2 nodes commit them at the join: a property's
+    counterexample ends at a settled state, where both read the same values."""
+    src = tracked.source
+    by_name = {t.name: t for t in src.transitions}
+    users: dict[int, list[FlatTransition]] = {}
+    for t in src.transitions:
+        for p in t.pre:
+            users.setdefault(p, []).append(t)
+    inside: set[int] = set()
+    for fork in src.transitions:
+        if fork.subsystem not in subsystems or not fork.name.endswith(",f,in]"):
+            continue
+        join = by_name.get(fork.name.removesuffix(",f,in]") + ",f,out]")
+        if join is None:
+            continue
+        region = set(fork.post)
+        frontier = list(fork.post)
+        while frontier:
+            for t in users.get(frontier.pop(), ()):
+                if t is join or t.subsystem != fork.subsystem:
+                    continue
+                for q in t.post:
+                    place = src.places[q]
+                    if (q not in region and place.subsystem == fork.subsystem
+                            and place.channel is None):
+                        region.add(q)
+                        frontier.append(q)
+        inside |= region
+    places = [p.index for p in tracked.net.places if tracked.place_origin[p.index] in inside]
+    return ~_any_marked(graph, places)
 
 
 def _any_marked(graph: Graph, places: Sequence[int]) -> Any:
