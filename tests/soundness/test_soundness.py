@@ -89,7 +89,8 @@ def test_a_generated_spec_reads_as_its_features_say() -> None:
 def _outcome(engine: str, **kw: Any) -> Outcome:
     base: dict[str, Any] = {"verdict": "verified", "safe": True, "deadlock_free": True,
                             "progress_ok": True, "lost": frozenset(), "properties": {},
-                            "method": "full", "seconds": 0.0, "why": None}
+                            "method": "full", "seconds": 0.0, "why": None,
+                            "checked": frozenset({"a.c", "b.c"})}
     base.update(kw)
     return Outcome(engine, **base)
 
@@ -102,6 +103,11 @@ def test_compare_reports_two_decided_answers_that_differ_and_only_those() -> Non
     lost = {"off": _outcome("off", progress_ok=False, lost=frozenset({"a.c", "b.c"})),
             "sliced": _outcome("sliced", progress_ok=False, lost=frozenset({"a.c"}))}
     assert [d.what for d in compare(lost)] == ["progress lost"]
+    # a check stopped after its first loss (b.c not checked) lists fewer, not differently
+    part = {"off": _outcome("off", progress_ok=False, lost=frozenset({"a.c", "b.c"})),
+            "auto": _outcome("auto", progress_ok=False, lost=frozenset({"a.c"}),
+                             checked=frozenset({"a.c"}))}
+    assert compare(part) == []
     props = {"off": _outcome("off", properties={"p": True})}
     assert [d.what for d in compare(props, {"p": False})] == ["property p"]
 
@@ -197,8 +203,7 @@ def _limit_after_abstraction() -> Iterator[None]:
 def _limit_in_property_lasso() -> Iterator[None]:
     """A limit of the run reached as userprops builds a response property's lasso."""
     from rssm_dsl.verify import userprops
-
-    original = userprops.terminal_component
+    from rssm_dsl.verify.progress import terminal_component as original
 
     def wrapped(graph: Any, state: int, budget: Any = None) -> Any:
         if budget is not None:
