@@ -29,7 +29,7 @@ if TYPE_CHECKING:
     from rssm_dsl.diagnostics import Diagnostic
     from rssm_dsl.interp import RunConfig
     from rssm_dsl.interp.program import Runtime
-    from rssm_dsl.interp.replay import Counterexample, ReplayVerdict
+    from rssm_dsl.interp.replay import Counterexample, PropertyWatch, ReplayVerdict
     from rssm_dsl.interp.sampler import Sampler
     from rssm_dsl.interp.scheduler import RunResult
     from rssm_dsl.interp.summary import Snapshot
@@ -197,13 +197,13 @@ def _simulate(file: Path, steps: int | None, until: float | None, mode: str, see
     if rt is None:
         return EXIT_ERRORS
 
-    cx, forced = None, None
+    cx, forced, watch = None, None, None
     if replay is not None:
         loaded = _load_replay(comp, rt, replay, mode, fmt)
         if isinstance(loaded, int):
             rt.close_devices()
             return loaded
-        cx, forced = loaded
+        cx, forced, watch = loaded
 
     sampler = record.attach(rt) if record is not None else None
     if isinstance(sampler, str):
@@ -222,9 +222,12 @@ def _simulate(file: Path, steps: int | None, until: float | None, mode: str, see
                       stall_periods=stall_periods,
                       forced=forced, record_markings=cx is not None and cx.kind == "progress",
                       progress=painter, eager=eager,
+                      observe=watch.observe if watch is not None else None,
                       trace_info={"spec": str(file),
                                   "replay": str(replay) if replay is not None else None})
     sim = Simulator(rt, opts)
+    if watch is not None:
+        watch.attach(sim)
     try:
         result = sim.run()
     finally:
@@ -233,7 +236,7 @@ def _simulate(file: Path, steps: int | None, until: float | None, mode: str, see
         if tracer is not None:
             tracer.close()
 
-    verdict = judge(cx, forced or [], result, sim) if cx is not None else None
+    verdict = judge(cx, forced or [], result, sim, watch) if cx is not None else None
     diags = list(result.diagnostics)
     if verdict is not None:
         diags = [d for d in verdict.diagnostics if d not in diags] + diags
@@ -340,11 +343,17 @@ def _unknown_device(system: System, targets: list[str]) -> str | None:
     return None
 
 
-def _load_replay(comp: Compilation, rt: Runtime, replay: Path, mode: str,
-                 fmt: Format) -> tuple[Counterexample, list[int]] | int:
-    """The counterexample to replay and its transitions, or the exit code when it cannot be
-    replayed (the problem printed)."""
-    from rssm_dsl.interp.replay import ReplayFileError, load_counterexample, resolve_steps
+def _load_replay(comp: Compilation, rt: Runtime, replay: Path, mode: str, fmt: Format
+                 ) -> tuple[Counterexample, list[int], PropertyWatch | None] | int:
+    """The counterexample to replay, its transitions and (a property's) the watch that
+    judges it, or the exit code when it cannot be replayed (the problem printed)."""
+    from rssm_dsl.interp.replay import (
+        PropertyWatch,
+        ReplayFileError,
+        load_counterexample,
+        resolve_steps,
+    )
+    from rssm_dsl.semantics.properties import PropertyError
 
     try:
         cx = load_counterexample(replay)
@@ -358,7 +367,23 @@ def _load_replay(comp: Compilation, rt: Runtime, replay: Path, mode: str,
     if mode != "deterministic":
         typer.echo("rssmc: --replay runs in deterministic mode", err=True)
         return EXIT_USAGE
-    return cx, forced
+    if cx.kind != "property":
+        return cx, forced, None
+    assert comp.system is not None
+    prop = next((p for p in comp.system.properties if p.name == cx.subsystem), None)
+    if prop is None:
+        names = ", ".join(p.name for p in comp.system.properties) or "none"
+        typer.echo(f"rssmc: --replay: the counterexample is of property '{cx.subsystem}', "
+                   f"which system {comp.system.name} does not state (its properties: "
+                   f"{names})", err=True)
+        return EXIT_USAGE
+    try:
+        watch = PropertyWatch(rt, prop, cx)
+    except PropertyError as e:
+        typer.echo(f"rssmc: --replay: property {prop.name} cannot be evaluated: {e}",
+                   err=True)
+        return EXIT_USAGE
+    return cx, forced, watch
 
 
 def _print_json(result: RunResult, diags: list[Diagnostic], verdict: ReplayVerdict | None) -> None:
@@ -398,7 +423,7 @@ def _exit_code(result: RunResult, cx: Counterexample | None,
     if verdict is None and result.reason in ("deadlock", "stalled"):
         return EXIT_STUCK
     if verdict is not None:
-        if cx is not None and cx.kind in ("deadlock", "unsafe", "progress"):
+        if cx is not None and cx.kind in ("deadlock", "unsafe", "progress", "property"):
             return EXIT_ERRORS if verdict.reproduced else EXIT_USAGE
         return EXIT_OK if verdict.reproduced else EXIT_ERRORS
     return EXIT_OK if result.ok else EXIT_ERRORS

@@ -472,6 +472,7 @@ def _next_iteration(s: SubsystemState) -> Effect:
     def next_iteration() -> None:
         s.conds = None
         s.failed = None
+        s.completed += 1
     return next_iteration
 
 
@@ -482,6 +483,7 @@ def _behaviour_ends(s: SubsystemState) -> Effect:
         s.last_conds = s.conds or {}
         s.conds = None
         s.failed = None
+        s.completed += 1
     return behaviour_ends
 
 

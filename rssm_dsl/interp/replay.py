@@ -3,9 +3,13 @@
 Accepted files (told apart by their content):
 
 * a verification report (``rssmc verify --format json``): its first counterexample is
-  replayed, deadlocks first, then an unsafe firing, then a loss of progress;
-* one counterexample object: ``{"kind": "deadlock" | "unsafe" | "progress", "steps": [...],
-  "marking": [...], ...}`` as in the report (``rssm_dsl.verify.report.Counterexample``);
+  replayed, deadlocks first, then an unsafe firing, then a loss of progress, then the
+  counterexample of the first violated property stated in the spec (``user_properties``, in
+  the order of the spec);
+* one counterexample object: ``{"kind": "deadlock" | "unsafe" | "progress" | "property",
+  "steps": [...], "marking": [...], ...}`` as in the report
+  (``rssm_dsl.verify.report.Counterexample``; a property's names the property in
+  ``"subsystem"``), or one entry of ``user_properties`` (its ``counterexample``);
 * a list of transitions;
 * a trace of `rssmc simulate` (JSON lines): its ``fire`` events, read by the one trace
   reader (:mod:`rssm_core.trace`; a malformed line is an error naming the line).
@@ -18,15 +22,18 @@ simulated data is marked ``"forced": true`` in the trace), with the operations
 run so that the values can be seen. A loss of progress is replayed up to its cycle, then the
 cycle twice. The replay then checks that the simulation ends where the verifier said, judged
 by the firing rule of :mod:`rssm_core.firing` (a deadlock: no transition enabled in the
-marking reached; an unsafe firing: the last step double-marks a place).
+marking reached; an unsafe firing: the last step double-marks a place), or, for a property, by
+the property's own expressions evaluated on the simulator's state (:class:`PropertyWatch`):
+`always P`, P false in the state reached; `whenever P eventually Q`, P true at the end of the
+path and Q false at every state from there on, the cycle replayed twice.
 """
 
 from __future__ import annotations
 
 import json
-from dataclasses import field
+from dataclasses import field, replace
 from pathlib import Path
-from typing import Any
+from typing import TYPE_CHECKING, Any
 
 from rssm_core.firing import Net, NotEnabled
 from rssm_core.records import dataclass
@@ -35,6 +42,10 @@ from rssm_dsl.diagnostics import Diagnostic
 from rssm_dsl.hpn.flat import FlatNet, Role
 from rssm_dsl.interp.scheduler import RunResult, Simulator
 from rssm_dsl.source import Span
+
+if TYPE_CHECKING:
+    from rssm_dsl.interp.program import Runtime
+    from rssm_dsl.semantics.model import Property
 
 CYCLES = 2
 _LIST_KEYS = ("counterexample", "steps", "trace", "firings", "path")
@@ -46,10 +57,10 @@ class ReplayFileError(Exception):
 
 @dataclass(frozen=True)
 class Counterexample:
-    kind: str                              # deadlock | unsafe | progress | trace
+    kind: str                              # deadlock | unsafe | progress | property | trace
     steps: tuple[str, ...]
     marking: tuple[str, ...] = ()          # labels of the places marked at the end of steps
-    subsystem: str | None = None
+    subsystem: str | None = None           # a property's counterexample: the property
     to_cycle: tuple[str, ...] = ()
     cycle: tuple[str, ...] = ()
     cycle_marking: tuple[str, ...] = ()
@@ -78,16 +89,26 @@ def _strings(items: Any) -> tuple[str, ...]:
     return tuple(str(x) for x in items) if isinstance(items, list) else ()
 
 
+REPORT_KEYS = ("deadlocks", "unsafe", "progress", "user_properties")   # the replay's order
+
+
 def _from_object(d: dict[str, Any]) -> Counterexample:
-    if any(k in d for k in ("deadlocks", "unsafe", "progress")) and "steps" not in d:
+    if any(k in d for k in REPORT_KEYS) and "steps" not in d:
         for c in d.get("deadlocks") or []:
             return _from_object(c)
         if isinstance(d.get("unsafe"), dict):
             return _from_object(d["unsafe"])
         for c in d.get("progress") or []:
             return _from_object(c)
+        for p in d.get("user_properties") or []:
+            if isinstance(p, dict) and p.get("holds") is False \
+                    and isinstance(p.get("counterexample"), dict):
+                return _property(p)
         verdict = d.get("verdict", "?")
         raise ReplayFileError(f"the report holds no counterexample (verdict: {verdict})")
+    if isinstance(d.get("counterexample"), dict) and isinstance(d.get("name"), str) \
+            and d.get("kind") in ("always", "response"):
+        return _property(d)                  # one entry of the report's user_properties
     kind = str(d.get("kind", "trace"))
     for key in _LIST_KEYS:
         if key in d:
@@ -101,6 +122,12 @@ def _from_object(d: dict[str, Any]) -> Counterexample:
                 _names(d.get("to_cycle", []), "to_cycle"), _names(d.get("cycle", []), "cycle"),
                 _strings(d.get("cycle_marking")))
     raise ReplayFileError("no firing sequence (\"steps\") in the file")
+
+
+def _property(p: dict[str, Any]) -> Counterexample:
+    """The counterexample of an entry of the report's ``user_properties``."""
+    cx = _from_object(p["counterexample"])
+    return replace(cx, kind="property", subsystem=str(p["name"]))
 
 
 def load_counterexample(path: Path) -> Counterexample:
@@ -172,8 +199,11 @@ def _last_step_unsafe(rule: Net, initial: frozenset[int], steps: list[int]) -> b
 
 
 def judge(cx: Counterexample, forced: list[int], result: RunResult,
-          sim: Simulator) -> ReplayVerdict:
-    """Does the replayed run end where the verifier said?"""
+          sim: Simulator, watch: PropertyWatch | None = None) -> ReplayVerdict:
+    """Does the replayed run end where the verifier said? (A property's counterexample:
+    judged by its ``watch``.)"""
+    if watch is not None:
+        return watch.judge(result)
     net = sim.rt.net
     rule = sim.game.rule
     codes = {d.code for d in result.diagnostics}
@@ -221,3 +251,205 @@ def judge(cx: Counterexample, forced: list[int], result: RunResult,
                              f"rest of the system repeats a cycle of {size} firings "
                              f"(replayed {CYCLES} times)")
     return ReplayVerdict(True, f"replayed {n} firings")
+
+
+# ---------------------------------------------------------------------- properties
+
+_PENDING = object()          # a value a transition function under way has yet to commit
+SETTLE_STEPS = 10_000        # local steps allowed to complete a transition function
+
+
+@dataclass
+class _Seen:
+    """One state of a replayed property counterexample: after ``step`` firings."""
+
+    step: int
+    ins: dict[tuple[str, str], bool]
+    vals: dict[tuple[str, str], Any]
+    marking: frozenset[int]
+
+
+class PropertyWatch:
+    """Judges a replayed counterexample of a property stated in the spec (`always P`,
+    `whenever P eventually Q`) on the simulator's state, with the property's expressions
+    compiled by :class:`rssm_dsl.semantics.properties.Formula` (the code the interpreter runs,
+    by which the verifier evaluates them too).
+
+    The atoms are read as the verifier reads them: `SUB in BEH` is true when a place of BEH's
+    page of SUB is marked; `SUB.NAME` is the variable's value, where a transition function
+    under way (its fork fired, its join not yet) counts as applied. The verifier applies a
+    transition function at its fork, the interpreter commits it at its join, and nothing
+    changes the subsystem's variables in between, so such a value is read when the join
+    fires; one still under way when the replay ends is completed by its own local steps
+    first (they change no behaviour and nothing of another subsystem, and are not part of
+    the replayed sequence).
+
+    ``observe`` is the simulator's hook after each firing (SimOptions.observe); ``attach``
+    is called with the simulator before the run."""
+
+    def __init__(self, rt: Runtime, prop: Property, cx: Counterexample) -> None:
+        from rssm_dsl.semantics.properties import Formula, InBehaviour, Value
+
+        self.rt, self.prop, self.cx = rt, prop, cx
+        self.formulas = [Formula(rt.system, e) for e in prop.expressions]
+        net = rt.net
+        self.forks = dict(net.new_sites.forks)
+        self.joins = dict(net.new_sites.joins)
+        atoms = [a for f in self.formulas for a in f.atoms]
+        self.behaviours = {
+            (a.subsystem_id, a.behaviour): tuple(
+                p.index for p in net.places
+                if p.subsystem == a.subsystem_id and p.behaviour == a.behaviour)
+            for a in atoms if isinstance(a, InBehaviour)}
+        self.values = sorted({(a.subsystem_id, a.variable_name) for a in atoms
+                              if isinstance(a, Value)})
+        self.start = len(cx.steps)    # the state judged (always) / where P holds (response)
+        self.under_way: set[str] = set()
+        self.fired = 0
+        self.seen: list[_Seen] = []
+        self.sim: Simulator | None = None
+
+    # -- during the run
+    def attach(self, sim: Simulator) -> None:
+        self.sim = sim
+        if self.start == 0:
+            self._look()
+
+    def observe(self, t: int) -> None:
+        self.fired += 1
+        sid = self.joins.get(t)
+        if sid is not None:
+            self.under_way.discard(sid)
+            self._resolve(sid)
+        sid = self.forks.get(t)
+        if sid is not None:
+            self.under_way.add(sid)
+        if self.fired == self.start or (self.fired > self.start
+                                        and self.prop.kind == "response"):
+            self._look()
+
+    def _look(self) -> None:
+        assert self.sim is not None
+        marking = self.sim.game.marking()
+        ins = {k: any(p in marking for p in places) for k, places in self.behaviours.items()}
+        vals = {(sid, name): _PENDING if sid in self.under_way
+                else self.rt.subsystems[sid].vars[name] for sid, name in self.values}
+        self.seen.append(_Seen(self.fired, ins, vals, marking))
+
+    def _resolve(self, sid: str) -> None:
+        variables = self.rt.subsystems[sid].vars
+        for seen in self.seen:
+            for (owner, name), v in seen.vals.items():
+                if owner == sid and v is _PENDING:
+                    seen.vals[owner, name] = variables[name]
+
+    def _settle(self) -> None:
+        """Complete the transition functions still under way (see the class docstring)."""
+        sim = self.sim
+        assert sim is not None
+        game, net, guards = sim.game, self.rt.net, self.rt.guards
+        for sid in sorted(self.under_way & {sid for sid, _ in self.values}):
+            for _ in range(SETTLE_STEPS):
+                ready = [t for t in sorted(game.enabled) if net.transitions[t].subsystem == sid
+                         and (guards[t] is None or guards[t]())]   # type: ignore[misc]
+                if not ready:
+                    break
+                sim.fire[ready[0]]()
+                if ready[0] in self.joins:
+                    self._resolve(sid)
+                    break
+
+    # -- after the run
+    def _holds(self, k: int, seen: _Seen) -> bool:
+        def value(sid: str, name: str) -> Any:
+            v = seen.vals[sid, name]
+            if v is _PENDING:
+                raise LookupError("its transition function could not be completed")
+            return v
+
+        return self.formulas[k](lambda s, b: seen.ins.get((s, b), False), value)
+
+    def _atoms(self, seen: _Seen) -> str:
+        from rssm_dsl.semantics.properties import written
+
+        system = self.rt.system
+        parts = [f"{written(system, s)} in {b} = {str(v).lower()}"
+                 for (s, b), v in seen.ins.items()]
+        parts += [f"{written(system, s)}.{n} = "
+                  + (str(v).lower() if isinstance(v, bool) else str(v))
+                  for (s, n), v in seen.vals.items()]
+        return ", ".join(parts)
+
+    def judge(self, result: RunResult) -> ReplayVerdict:
+        from rssm_dsl.interp.errors import EvalError
+        from rssm_dsl.semantics.properties import PropertyError, UnknownValue
+        from rssm_dsl.syntax.printer import expr_text
+
+        name = self.prop.name
+        texts = [f"`{expr_text(e)}`" for e in self.prop.expressions]
+        fail = f"the violation of property {name} is not reproduced"
+        if result.reason != "replayed":
+            what = f"stopped at step {result.steps}" if result.reason == "error" else \
+                f"stopped early ({result.reason})"
+            return ReplayVerdict(False, f"the replay {what}: {result.message}; {fail}",
+                                 result.diagnostics)
+        try:
+            self._settle()
+        except EvalError as e:
+            return ReplayVerdict(False, f"completing a transition function under way failed: "
+                                 f"{e.message}; {fail}")
+        try:
+            return self._always(texts[0], fail) if self.prop.kind == "always" else \
+                self._response(texts[0], texts[1], fail)
+        except (UnknownValue, PropertyError, EvalError) as e:
+            message = e.message if isinstance(e, EvalError) else str(e)
+            return ReplayVerdict(False, f"{', '.join(texts)} cannot be evaluated on the "
+                                 f"replayed state: {message}; {fail}")
+
+    def _always(self, p: str, fail: str) -> ReplayVerdict:
+        name, n = self.prop.name, self.start
+        seen = self.seen[-1] if self.seen else None
+        if seen is None or seen.step != n:
+            return ReplayVerdict(False, f"the state after {n} firings was not observed; {fail}")
+        if self._holds(0, seen):
+            return ReplayVerdict(False, f"after the {n} firings of the counterexample {p} "
+                                 f"holds ({self._atoms(seen)}): {fail}")
+        return ReplayVerdict(True, f"property {name} violated: after {n} firings {p} is false "
+                             f"({self._atoms(seen)})")
+
+    def _response(self, p: str, q: str, fail: str) -> ReplayVerdict:
+        name, n, cx = self.prop.name, self.start, self.cx
+        at = {s.step: s for s in self.seen}
+        first = at.get(n)
+        if first is None:
+            return ReplayVerdict(False, f"the state after {n} firings was not observed; {fail}")
+        if not self._holds(0, first):
+            return ReplayVerdict(False, f"after the {n} firings of the path {p} does not hold "
+                                 f"({self._atoms(first)}): {fail}")
+        for seen in self.seen:
+            if seen.step >= n and self._holds(1, seen):
+                return ReplayVerdict(False, f"{q} holds after {seen.step} firings "
+                                     f"({self._atoms(seen)}): {fail}")
+        later = len(self.seen) - 1
+        entry, size = n + len(cx.to_cycle), len(cx.cycle)
+        if size == 0:
+            assert self.sim is not None
+            marking = self.sim.game.marking()
+            enabled = self.sim.game.rule.enabled_set(marking)
+            if enabled:
+                return ReplayVerdict(False, f"the path ends where {len(enabled)} transition(s) "
+                                     f"are still enabled, and the counterexample has no cycle "
+                                     f"to repeat: {fail}")
+            return ReplayVerdict(True, f"property {name} violated: after {n} firings {p} "
+                                 f"holds ({self._atoms(first)}), and {q} holds at none of the "
+                                 f"{later} states that follow, up to a marking where nothing "
+                                 "can fire")
+        ends = [at.get(entry + k * size) for k in range(CYCLES + 1)]
+        marks = {e.marking if e is not None else None for e in ends}
+        if None in marks or len(marks) != 1:
+            return ReplayVerdict(False, f"the cycle does not come back to the marking it "
+                                 f"started from: {fail}")
+        return ReplayVerdict(True, f"property {name} violated: after {n} firings {p} holds "
+                             f"({self._atoms(first)}), and {q} holds at none of the {later} "
+                             f"states that follow, the cycle of {size} firings replayed "
+                             f"{CYCLES} times back to the marking it started from")

@@ -59,6 +59,7 @@ class SimOptions:
     progress: Callable[[Snapshot], None] | None = None
     progress_interval: float = 0.5              # seconds of wall-clock time
     stall_periods: int = STALL_PERIODS          # see watchdog.py (0: not watched)
+    observe: Callable[[int], None] | None = None  # deterministic: called after each firing
     trace_info: dict[str, Any] = field(default_factory=dict)  # more fields of `start`
 
 
@@ -234,7 +235,7 @@ class Simulator:
             needs = [q for b in mine for _, m in b.needs for q in m]
             since = f"since t = {st.since / 1e9:g} s" if st.since else "since the start"
             parts.append(f"{what}, no iteration {since}"
-                         + (f" (waits for: {needs[0][1]})" if needs else ""))
+                         + (f" ({awaited(needs[0][1])})" if needs else ""))
             waiting[s.id] = mine[0].place if mine else ""
             where = net.place(mine[0].place).span if mine else s.model.span
             if span is None:
@@ -242,7 +243,7 @@ class Simulator:
             else:
                 related.append(Related(where, what))
             for name, label in needs[:3]:
-                related.append(Related(net.place(name).span, f"{s.id} waits for: {label}"))
+                related.append(Related(net.place(name).span, f"{s.id} {awaited(label)}"))
         assert span is not None
         periods = self.watchdog.periods
         msg = (f"{len(stalls)} subsystem(s) stalled at t = {now / 1e9:g} s while the rest of "
@@ -417,6 +418,20 @@ class Simulator:
             loop.shutdown()
 
 
+def awaited(label: str) -> str:
+    """What a stalled subsystem waits for, given the label of the place its next transition
+    misses. A channel's two fused places are complements: missing `empty` means the channel
+    is full and the producer waits for the consumer to take the value; missing `full` means
+    it is empty and the consumer waits for fresh data. The channel is named with the state it
+    stands in, as `rssmc verify` words its "stands at" lines."""
+    if label.startswith("channel ") and label.endswith(": empty"):
+        return ("waits for the consumer to take the value: "
+                f"{label.removesuffix(': empty')}: full")
+    if label.startswith("channel ") and label.endswith(": full"):
+        return f"waits for fresh data: {label.removesuffix(': full')}: empty"
+    return f"waits for: {label}"
+
+
 class _Finish(Exception):
     """The deterministic loop ends normally (limit, termination, time, end of a replay)."""
 
@@ -444,8 +459,8 @@ class _Deterministic:
 
     __slots__ = ("clock", "conditional", "enabled", "final", "fire", "forced", "game", "gates",
                  "guards", "instant", "instant_steps", "limit", "local", "macros", "missing",
-                 "mlen", "next_look", "record", "rnd", "rt", "sim", "steps", "timers", "tokens",
-                 "tracer", "until", "was_forced")
+                 "mlen", "next_look", "observe", "record", "rnd", "rt", "sim", "steps", "timers",
+                 "tokens", "tracer", "until", "was_forced")
 
     def __init__(self, sim: Simulator) -> None:
         rt, game, opt = sim.rt, sim.game, sim.opt
@@ -469,7 +484,9 @@ class _Deterministic:
         self.local = sim.local
         self.record = sim.markings if opt.record_markings else None
         self.tracer = rt.tracer
-        self.macros = sim.macros if self.tracer is None and self.record is None else None
+        self.observe = opt.observe
+        self.macros = sim.macros if self.tracer is None and self.record is None \
+            and self.observe is None else None
         self.mlen = sim.macro_len
         self.steps = 0                   # firings so far, stored when the loop ends or raises
         self.next_look = PROGRESS_EVERY                  # the next look at progress and time
@@ -666,6 +683,8 @@ class _Deterministic:
         self.fire[t]()
         if self.record is not None:
             self.record.append(self.game.marking())
+        if self.observe is not None:
+            self.observe(t)
 
 
 class _Concurrent:

@@ -45,6 +45,7 @@ class SubsystemState:
     stage: dict[str, Any] = field(default_factory=dict)
     new: NewFlags = field(default_factory=lambda: NewFlags(0))
     i: int = 0                                   # the discrete time stamp of the paper
+    completed: int = 0                           # iterations completed (t_4 or t_out fired)
     behaviour: str | None = None                 # current behaviour; None before/after
     started: bool = False
     ended: bool = False

@@ -4,16 +4,20 @@ deadlock stops the run by itself (nothing can fire, E805); a partial one does no
 controllers that wait for each other on blocking channels freeze while their effectors and
 devices run on, and without this watch the run would go on to its bound and report success.
 
-A subsystem is *stalled* when its iteration count (the paper's discrete time stamp i) has not
-changed for ``periods`` periods of the slowest paced subsystem or device of the system. The
-slowest period, not the subsystem's own: a 100 Hz consumer that receives, blocking, from a
-1 Hz producer waits a whole second for each value, which is the system's rhythm and not a
-stall. A subsystem that has ended (switched to `end`) is not watched. Simulated time only
-advances at ticks, so a system with no frequency at all cannot stall this way (it deadlocks
-or stands still: E805, E808).
+A subsystem is *stalled* when it has completed no iteration (fired neither `t_4` nor
+`t_out` of a behaviour page) for ``periods`` periods of the slowest paced subsystem or
+device of the system. Completed iterations, not the discrete time stamp i: i := i + 1 runs at
+p_2, before the receive, so a subsystem that waits for ever in its blocking receive has
+counted an iteration it never completes. The slowest period, not the subsystem's own: a
+100 Hz consumer that receives, blocking, from a 1 Hz producer waits a whole second for each
+value, which is the system's rhythm and not a stall. A subsystem that has ended (switched to
+`end`) is not watched. Simulated time only advances at ticks, so a system with no frequency
+at all cannot stall this way (it deadlocks or stands still: E805, E808).
 
 The run stops with E809, which names each stalled subsystem, its behaviour, and what it
-waits for (the places its next transition misses: a buffer of a peer, with its span).
+waits for (the places its next transition misses; a channel is worded by what is awaited
+and the state it stands in: "waits for the consumer to take the value: channel ...: full",
+"waits for fresh data: channel ...: empty", as `rssmc verify` words its "stands at" lines).
 """
 
 from __future__ import annotations
@@ -50,7 +54,7 @@ class Watchdog:
         self.step = max(1, self.reference // 2)
         self.next_check = self.step
         self.seen: dict[str, tuple[int, int]] = {
-            sid: (s.i, 0) for sid, s in rt.subsystems.items()}   # (i, since when)
+            sid: (s.completed, 0) for sid, s in rt.subsystems.items()}   # (count, since when)
 
     def due(self, now: int) -> bool:
         return self.active and now >= self.next_check
@@ -60,9 +64,9 @@ class Watchdog:
         self.next_check = now + self.step
         out: list[Stall] = []
         for sid, s in self.rt.subsystems.items():
-            i, since = self.seen[sid]
-            if s.i != i:
-                self.seen[sid] = (s.i, now)
+            done, since = self.seen[sid]
+            if s.completed != done:
+                self.seen[sid] = (s.completed, now)
                 continue
             if not s.ended and now - since >= self.limit:
                 out.append(Stall(s, since))

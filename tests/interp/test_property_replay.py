@@ -1,0 +1,166 @@
+"""`rssmc simulate --replay` of the counterexamples of properties stated in the spec, from
+what `rssmc verify --format json` really prints, and the E809 stall watch on a spec where one
+subsystem waits for ever in its blocking receive while two others wait for each other."""
+
+from __future__ import annotations
+
+import json
+import subprocess
+import sys
+from pathlib import Path
+from typing import Any
+
+from tests.interp.conftest import ROOT, SPECS
+
+ACCEPTANCE = ROOT / "tests" / "verify" / "acceptance"
+NEVER_DONE = ACCEPTANCE / "conveyor_cell_never_done.rssm"
+COUNTER = SPECS / "counter_bound.rssm"
+
+
+def rssmc(*args: str | Path) -> subprocess.CompletedProcess[str]:
+    return subprocess.run([sys.executable, "-m", "rssm_dsl", *map(str, args)], cwd=ROOT,
+                          capture_output=True, text=True, timeout=300)
+
+
+def verified(spec: Path, out: Path) -> dict[str, Any]:
+    """The report of `rssmc verify SPEC --format json`, written to ``out`` as a user would."""
+    r = rssmc("verify", spec, "--format", "json")
+    assert r.returncode == 1, r.stderr
+    out.write_text(r.stdout, encoding="utf-8")
+    report: dict[str, Any] = json.loads(r.stdout)
+    return report
+
+
+def violated(report: dict[str, Any]) -> dict[str, Any]:
+    (prop,) = [p for p in report["user_properties"] if p["holds"] is False]
+    assert isinstance(prop, dict)
+    return prop
+
+
+def replay(spec: Path, path: Path) -> tuple[int, dict[str, Any]]:
+    r = rssmc("simulate", spec, "--replay", path, "--format", "json")
+    out: dict[str, Any] = json.loads(r.stdout)
+    return r.returncode, out
+
+
+def test_a_violated_response_property_replays_from_the_report(tmp_path: Path) -> None:
+    """conveyor_cell_never_done: the pickers always answer busy, so `whenever conveyor.c in
+    offer eventually conveyor.c in wait_part` is violated by a lasso; the report (no
+    deadlock, no loss of progress) replays it: P at the end of the path, Q nowhere after,
+    the cycle twice back to its marking; exit 1 as for every reproduced violation."""
+    path = tmp_path / "probe.json"
+    report = verified(NEVER_DONE, path)
+    assert not report["deadlocks"] and not report["progress"] and report["unsafe"] is None
+    prop = violated(report)
+    assert prop["name"] == "offer_ends" and prop["counterexample"]["cycle"]
+    code, out = replay(NEVER_DONE, path)
+    assert code == 1, out
+    assert out["reason"] == "replayed"
+    assert out["replay"]["reproduced"] is True
+    message = out["replay"]["message"]
+    assert message.startswith("property offer_ends violated")
+    assert "`conveyor.c in wait_part` holds at none of the" in message
+    assert "replayed 2 times back to the marking it started from" in message
+    # the property's entry alone, and its counterexample object alone, replay the same way
+    entry = tmp_path / "entry.json"
+    entry.write_text(json.dumps(prop), encoding="utf-8")
+    assert replay(NEVER_DONE, entry)[1]["replay"]["message"] == message
+    cx = tmp_path / "cx.json"
+    cx.write_text(json.dumps(prop["counterexample"]), encoding="utf-8")
+    assert replay(NEVER_DONE, cx)[1]["replay"]["message"] == message
+
+
+def test_a_violated_invariant_over_a_value_replays_from_the_report(tmp_path: Path) -> None:
+    """`always counter.c.count <= 2` with a counter that reaches 3: replayed from the report,
+    the state reached reads 3. The same path stopped at the fork of the transition function
+    that makes it 3 is reproduced too: the verifier applies a transition function at its
+    fork, the interpreter commits it at its join, and the replay reads the value as the
+    verifier does (the transition function under way completed before the state is judged)."""
+    path = tmp_path / "report.json"
+    report = verified(COUNTER, path)
+    prop = violated(report)
+    assert prop["name"] == "count_bounded" and prop["kind"] == "always"
+    code, out = replay(COUNTER, path)
+    assert code == 1, out
+    assert out["replay"] == {"reproduced": True, "forced": 0, "message": (
+        f"property count_bounded violated: after {len(prop['counterexample']['steps'])} "
+        "firings `counter.c.count <= 2` is false (counter.c.count = 3)")}
+    r = rssmc("simulate", COUNTER, "--replay", path, "-q")
+    assert r.returncode == 1 and "replay: property count_bounded violated" in r.stderr
+    steps = prop["counterexample"]["steps"]
+    fork = max(k for k, s in enumerate(steps) if s["name"] == "t[counter,c,up,f,in]")
+    at_fork = tmp_path / "fork.json"
+    at_fork.write_text(json.dumps(dict(prop, counterexample=dict(
+        prop["counterexample"], steps=steps[:fork + 1]))), encoding="utf-8")
+    code, out = replay(COUNTER, at_fork)
+    assert code == 1, out
+    assert out["replay"]["message"] == (
+        f"property count_bounded violated: after {fork + 1} firings `counter.c.count <= 2` "
+        "is false (counter.c.count = 3)")
+
+
+def test_a_counterexample_that_misses_the_violation_is_not_reproduced(tmp_path: Path) -> None:
+    """Doctored counterexamples: the invariant's path cut short of the counter's last step,
+    and the response property's path cut before the conveyor offers anything (the cycle
+    dropped): both replay, neither reaches the violation, each says so; exit 2."""
+    path = tmp_path / "report.json"
+    prop = violated(verified(COUNTER, path))
+    cut = dict(prop, counterexample=dict(prop["counterexample"],
+                                         steps=prop["counterexample"]["steps"][:-4]))
+    doctored = tmp_path / "cut.json"
+    doctored.write_text(json.dumps(cut), encoding="utf-8")
+    code, out = replay(COUNTER, doctored)
+    assert code == 2, out
+    assert out["reason"] == "replayed" and out["replay"]["reproduced"] is False
+    assert out["replay"]["message"] == (
+        f"after the {len(cut['counterexample']['steps'])} firings of the counterexample "
+        "`counter.c.count <= 2` holds (counter.c.count = 2): the violation of property "
+        "count_bounded is not reproduced")
+
+    prop = violated(verified(NEVER_DONE, tmp_path / "probe.json"))
+    steps = prop["counterexample"]["steps"]
+    assert steps[-1]["label"] == "conveyor.c switches from wait_part to behaviour offer [arrived]"
+    cx = dict(prop["counterexample"], steps=steps[:-1], to_cycle=[], cycle=[])
+    doctored.write_text(json.dumps(dict(prop, counterexample=cx)), encoding="utf-8")
+    code, out = replay(NEVER_DONE, doctored)
+    assert code == 2, out
+    assert out["replay"]["reproduced"] is False
+    assert "`conveyor.c in offer` does not hold" in out["replay"]["message"]
+    assert out["replay"]["message"].endswith("the violation of property offer_ends is not "
+                                             "reproduced")
+
+
+def test_a_counterexample_of_a_property_the_spec_does_not_state(tmp_path: Path) -> None:
+    path = tmp_path / "report.json"
+    prop = violated(verified(COUNTER, path))
+    other = tmp_path / "other.json"
+    other.write_text(json.dumps(dict(prop, name="no_such")), encoding="utf-8")
+    r = rssmc("simulate", COUNTER, "--replay", other)
+    assert r.returncode == 2
+    assert "property 'no_such', which system counter_bound does not state" in r.stderr
+
+
+def test_e809_names_every_subsystem_that_completes_no_iteration(tmp_path: Path) -> None:
+    """conveyor_cell_bug: conveyor.c and picker1.c wait for each other in blocking sends,
+    and picker2.c waits for ever in its blocking receive of req2 (the conveyor never sends it
+    again). picker2.c has counted an iteration (i := i + 1 comes before the receive) but
+    completed none: the stall watch counts completed iterations, so all three are named,
+    each with what it waits for worded by the channel's state, as the verifier's "stands at"
+    lines word it."""
+    spec = ACCEPTANCE / "conveyor_cell_bug.rssm"
+    r = rssmc("simulate", spec, "--until", "20", "--format", "json")
+    assert r.returncode == 3, r.stderr
+    out = json.loads(r.stdout)
+    assert out["reason"] == "stalled"
+    [diag] = [d for d in out["diagnostics"] if d["code"] == "E809"]
+    assert diag["message"].startswith("3 subsystem(s) stalled")
+    assert {w["subsystem"] for w in out["waiting"]} == {"conveyor.c", "picker1.c", "picker2.c"}
+    message = diag["message"]
+    assert ("waits for the consumer to take the value: channel conveyor.c.req1 -> "
+            "picker1.c.req (blocking/blocking): full") in message
+    assert ("picker2.c (pick) receives req (blocking): start, no iteration since the start "
+            "(waits for fresh data: channel conveyor.c.req2 -> picker2.c.req "
+            "(blocking/blocking): empty)") in message
+    assert "waits for: channel" not in message
+    subsystems = {s["id"]: s for s in out["summary"]["subsystems"]}
+    assert subsystems["picker2.c"]["i"] == 1          # counted, never completed
