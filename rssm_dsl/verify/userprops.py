@@ -119,9 +119,20 @@ def _check_batch(net: FlatNet, batch: list[tuple[Property, list[Formula]]],
     found = {prop.name: _judge(net, prop, formulas, ex, budget) for prop, formulas in batch}
     again = [(prop, fs) for prop, fs in batch
              if ex.slice is not None and plan is not None and found[prop.name].holds is False]
+    if again and ex.slice is not None and plan is not None:
+        # first the slice's own path, replayed in the whole net with the values tracked
+        for prop, formulas in list(again):
+            cx = _confirm_with_values(net, ex.slice, plan, budget, prop, formulas,
+                                      found[prop.name].counterexample)
+            if cx is not None:
+                found[prop.name] = dataclasses.replace(found[prop.name], counterexample=cx)
+                again.remove((prop, formulas))
     if again:
-        whole = _explore(net, tuple(net.subsystems), [f for _, fs in again for f in fs], plan,
-                         budget, max_states, reduction)
+        left = budget.remaining()
+        cap = min(WHOLE_SECONDS, left / 3) if left is not None else WHOLE_SECONDS
+        with budget.capped(cap):
+            whole = _explore(net, tuple(net.subsystems), [f for _, fs in again for f in fs],
+                             plan, budget, max_states, reduction)
         for prop, formulas in again:
             r = _judge(net, prop, formulas, whole, budget)
             if r.holds is None:
@@ -132,7 +143,8 @@ def _check_batch(net: FlatNet, batch: list[tuple[Property, list[Formula]]],
     results.update(found)
 
 
-AUTO_FULL_STATES = 1_000_000    # "auto": the full search's share before the stubborn sets
+WHOLE_SECONDS = 30.0     # at most, of the run's time: a slice's violation checked in the whole net
+AUTO_FULL_STATES = 200_000      # "auto": the full search's share before the stubborn sets (as for deadlocks)
 
 
 @dataclass
@@ -235,6 +247,52 @@ def _judge(net: FlatNet, prop: Property, formulas: list[Formula], ex: _Explored,
                               f"in {int(unknown.sum()):,} of {states}", prop.span)
     return PropertyResult(prop.name, prop.kind, _text(prop), True, None, f"holds ({states})",
                           prop.span)
+
+
+def _confirm_with_values(net: FlatNet, sl: Slice, plan: ValuePlan, budget: Budget,
+                         prop: Property, formulas: list[Formula],
+                         cx: Counterexample | None) -> Counterexample | None:
+    """An ``always`` property violated on a slice whose environment writes values: the
+    slice's path replayed in the whole net with the values tracked (the lift of
+    ``sliced._Whole``: the outside producers run until they have sent what the slice read),
+    and the counterexample when the property is false in a state the replay reaches there;
+    None when that does not show it (the whole net is then explored)."""
+    from rssm_dsl.verify.sliced import _Whole
+
+    if prop.kind != "always" or cx is None:
+        return None
+    whole = _Whole(net, plan, budget)
+    if whole.net is None:
+        return None
+    try:
+        ends = whole.replay(sl, [t.index for t in cx.steps])
+    except (ReplayError, LimitReached):
+        return None
+    for node in ends:
+        if _value_at(formulas[0], whole.net, node.marking) is False:
+            return Counterexample("property", whole.steps(node.path()),
+                                  marking_labels(net, whole.raw(node.marking)),
+                                  subsystem=prop.name)
+    return None
+
+
+def _value_at(f: Formula, net: FlatNet, marking: frozenset[int]) -> bool | None:
+    """The formula in one marking of a net with the values tracked (as ``_truth`` reads the
+    states of a graph)."""
+    row: list[int] = []
+    getters: list[Any] = []
+    for a in f.atoms:
+        if isinstance(a, InBehaviour):
+            row.append(int(any(p.index in marking for p in net.places
+                               if p.subsystem == a.subsystem_id and p.behaviour == a.behaviour)))
+            getters.append(("in", a))
+        else:
+            key = f"value {a.subsystem_id}.{a.variable_name}"
+            vals = [(p.index, p.label.rpartition(" = ")[2]) for p in net.places
+                    if p.channel == key]
+            row.append(next((i for i, (place, _) in enumerate(vals) if place in marking), -1))
+            getters.append(("value", a, _domain_of(a, [v for _, v in vals])))
+    return _evaluate(f, tuple(row), getters)
 
 
 def _lasso(graph: Graph, state: int, budget: Budget) -> tuple[tuple[int, ...],
