@@ -291,10 +291,12 @@ def _first_steps(net: FlatNet, opts: VerifyOptions,
     quick = verify(net, dataclasses.replace(
         opts, check_progress=False, stall_shortcut=False,
         auto_full_states=min(opts.auto_full_states, opts.slice_after_states)))
-    if (quick.verdict is Verdict.VIOLATED and quick.complete and quick.method == "full"
+    if (quick.verdict is Verdict.VIOLATED and quick.complete
+            and quick.method in ("full", "compositional")
             and (opts.budget is None or opts.budget.stop is None)):
-        # a deadlock in a net explored whole: its progress check costs little more and
-        # says who else loses progress (the deadlock stands whatever it finds)
+        # a deadlock in a net explored whole (or composed whole): its progress check costs
+        # little more and says who else loses progress and which behaviours are
+        # unreachable (the deadlock stands whatever it finds)
         again = verify(net, dataclasses.replace(opts, stall_shortcut=False))
         if again.verdict is Verdict.VIOLATED:
             return groups, again
