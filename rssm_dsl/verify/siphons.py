@@ -339,21 +339,10 @@ def _lift_point(net: FlatNet, whole: _Whole, sl: Slice, cx: Counterexample) -> _
             "progress", _steps(net, steps), marking_labels(net, m), subsystem=None,
             where=marking_where(net, m), to_cycle=_steps(net, to_cycle),
             cycle=_steps(net, cycle), cycle_marking=marking_labels(net, at)))
-    if stopped:
-        everyone = {t.subsystem for t in net.transitions}
-        done, _ = whole.realise(to_cycle, starts)
-        end = next((n for n in done if not whole.moves(n.marking, everyone)), None)
-        if end is None:
-            raise ReplayError("with the values tracked, the rest of the system does not stop "
-                              "where it stops with tokens only")
-        return _Point(net, stuck, Counterexample(
-            "deadlock", whole.steps(end.path()), marking_labels(net, whole.raw(end.marking))),
-            None)
-    found = whole.lasso(starts, to_cycle, cycle)
-    if found is None:
-        raise ReplayError("with the values tracked, what the system does after the stall "
-                          "does not repeat")
-    start, turn, back = found
+    after = whole.after_stall(net, starts, to_cycle, cycle, stopped)
+    if isinstance(after, Counterexample):
+        return _Point(net, stuck, after, None)
+    start, turn, back = after
     prefix, into = start.path(), turn.path()
     m = whole.raw(start.marking)
     return _Point(net, stuck, None, Counterexample(

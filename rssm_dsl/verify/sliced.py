@@ -486,6 +486,28 @@ class _Whole:
             layer = list(nxt.values())[:LAYER]
         return layer, None
 
+    def after_stall(self, net: FlatNet, starts: Sequence[_Node], to_cycle: Sequence[int],
+                    cycle: Sequence[int], stopped: bool,
+                    ) -> Counterexample | tuple[_Node, _Node, _Node]:
+        """What follows a stuck point with the values tracked, from ``starts`` (the
+        markings reached there), the rest's run (``slicing.run_outside``: ``to_cycle``,
+        ``cycle``) replayed: when the rest stops too (``stopped``), the deadlock's
+        counterexample; else the lasso's start, turn and way back (``lasso``)."""
+        if stopped:
+            everyone = {t.subsystem for t in net.transitions}
+            done, _ = self.realise(to_cycle, starts)
+            end = next((n for n in done if not self.moves(n.marking, everyone)), None)
+            if end is None:
+                raise ReplayError("with the values tracked, the rest of the system does not "
+                                  "stop where it stops with tokens only")
+            return Counterexample("deadlock", self.steps(end.path()),
+                                  marking_labels(net, self.raw(end.marking)))
+        found = self.lasso(starts, to_cycle, cycle)
+        if found is None:
+            raise ReplayError("with the values tracked, what the rest of the system does "
+                              "once it is stuck does not repeat")
+        return found
+
     def moves(self, marking: frozenset[int], subsystems: Collection[str | None]) -> bool:
         """Some transition of ``subsystems`` is enabled in ``marking``."""
         assert self.net is not None
@@ -604,21 +626,11 @@ class _Lifted:
         if not stuck:
             return                  # the group has finished; the rest decides
         to_cycle, cycle, stopped = run_outside(net, m, sl.keep)
-        if stopped:
-            everyone = {t.subsystem for t in net.transitions}
-            ends, _ = w.realise(to_cycle, at)
-            end = next((n for n in ends if not w.moves(n.marking, everyone)), None)
-            if end is None:
-                raise ReplayError("with the values tracked, the rest of the system does not "
-                                  "stop where it stops with tokens only")
-            self.deadlocks.append(Counterexample("deadlock", w.steps(end.path()),
-                                                 self._labels(w.raw(end.marking))))
+        after = w.after_stall(net, at, to_cycle, cycle, stopped)
+        if isinstance(after, Counterexample):
+            self.deadlocks.append(after)
             return
-        found = w.lasso(at, to_cycle, cycle)
-        if found is None:
-            raise ReplayError("with the values tracked, what the rest of the system does "
-                              "while the group is stuck does not repeat")
-        start, turn, back = found
+        start, turn, back = after
         prefix = start.path()
         into = turn.path()
         m = w.raw(start.marking)
