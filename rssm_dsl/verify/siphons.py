@@ -75,7 +75,7 @@ from rssm_dsl.verify.report import (
     marking_where,
 )
 from rssm_dsl.verify.scc import components
-from rssm_dsl.verify.slicing import ReplayError, Slice, replay_group, run_outside
+from rssm_dsl.verify.slicing import ReplayError, Slice, fire_steps, replay_group, run_outside
 from rssm_dsl.verify.stubborn import StubbornExplorer
 from rssm_dsl.verify.valuenet import track_values
 
@@ -331,7 +331,7 @@ def _lift_point(net: FlatNet, whole: _Whole, sl: Slice, cx: Counterexample) -> _
                           "stops a subsystem of the group for good")
     to_cycle, cycle, stopped = run_outside(net, m, frozenset())
     if whole.net is None:
-        at = _fire(net, m, to_cycle)
+        at = fire_steps(net, m, to_cycle)
         if stopped:
             return _Point(net, stuck, Counterexample(
                 "deadlock", _steps(net, steps + to_cycle), marking_labels(net, at)), None)
@@ -376,15 +376,6 @@ def _test(net: FlatNet) -> SiphonTest:
 
 def _steps(net: FlatNet, steps: Sequence[int]) -> tuple:  # type: ignore[type-arg]
     return tuple(net.transitions[t] for t in steps)
-
-
-def _fire(net: FlatNet, m: frozenset[int], steps: Sequence[int]) -> frozenset[int]:
-    rule = net.rule
-    out = set(m)
-    for t in steps:
-        out.difference_update(rule.consume[t])
-        out.update(rule.produce[t])
-    return frozenset(out)
 
 
 def with_stalls(r: VerifyReport, stalls: StallSearch) -> VerifyReport:

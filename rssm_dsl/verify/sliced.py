@@ -60,6 +60,7 @@ from rssm_dsl.verify.slicing import (
     ReplayError,
     Slice,
     channels,
+    fire_steps,
     replay_group,
     run_outside,
     slice_net,
@@ -597,11 +598,11 @@ class _Lifted:
                               "whole net")
         to_cycle, cycle, stopped = run_outside(net, m, sl.keep)
         if stopped:
-            end = _fire(net, m, to_cycle)
+            end = fire_steps(net, m, to_cycle)
             self.deadlocks.append(Counterexample("deadlock", self._steps(steps + to_cycle),
                                                  self._labels(end)))
             return
-        at_cycle = _fire(net, m, to_cycle)
+        at_cycle = fire_steps(net, m, to_cycle)
         for s in stuck:
             self.progress.append(Counterexample(
                 "progress", self._steps(steps), self._labels(m), subsystem=s,
@@ -827,15 +828,6 @@ def _mask(m: frozenset[int]) -> int:
     for p in m:
         out |= 1 << p
     return out
-
-
-def _fire(net: FlatNet, m: frozenset[int], steps: Sequence[int]) -> frozenset[int]:
-    rule = net.rule
-    out = set(m)
-    for t in steps:
-        out.difference_update(rule.consume[t])
-        out.update(rule.produce[t])
-    return frozenset(out)
 
 
 def _combine(net: FlatNet, groups: Sequence[tuple[str, ...]],

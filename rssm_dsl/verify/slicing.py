@@ -501,6 +501,16 @@ def _alternatives(net: FlatNet, group: frozenset[str], chans: list[Channel],
     return out
 
 
+def fire_steps(net: FlatNet, m: frozenset[int], steps: Sequence[int]) -> frozenset[int]:
+    """The marking ``steps`` lead to from ``m`` (fired as given, not checked)."""
+    rule = net.rule
+    out = set(m)
+    for t in steps:
+        out.difference_update(rule.consume[t])
+        out.update(rule.produce[t])
+    return frozenset(out)
+
+
 def run_outside(net: FlatNet, marking: frozenset[int], group: frozenset[str],
                 max_steps: int = 100_000) -> tuple[list[int], list[int], bool]:
     """What the rest of the system does while ``group`` stands still: from ``marking``, the
