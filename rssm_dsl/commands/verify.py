@@ -201,6 +201,11 @@ def _verify(budget: Budget, watch: Watchdog, live: _Live | None, file: Path, for
                 watch.finish()
                 report(comp, format)
                 return EXIT_BAD_INPUT
+            unknown = _unknown_device_option(comp, falsifier)
+            if unknown is not None:     # as `rssmc simulate` says it
+                watch.finish()
+                typer.echo(unknown, err=True)
+                return EXIT_BAD_INPUT
             budget.check()          # a limit reached while compiling: no further phase
             with budget.running("the flattening"):
                 net = flatten(comp.hpn)
@@ -301,6 +306,15 @@ def _write_all(fd: int, text: str) -> None:
     with contextlib.suppress(OSError):
         while data:
             data = data[os.write(fd, data):]
+
+
+def _unknown_device_option(comp: Any, falsifier: FalsifyOptions | None) -> str | None:
+    """The usage error for a --device-option that names no device of the system."""
+    if falsifier is None or not falsifier.device_options:
+        return None
+    from rssm_dsl.commands.simulate import _unknown_device
+
+    return _unknown_device(comp.system, list(falsifier.device_options))
 
 
 def _falsifier(on: bool, seed: int, device_options: list[str]) -> FalsifyOptions | str | None:

@@ -225,3 +225,15 @@ def test_the_seed_option_gives_the_same_counterexample_again() -> None:
         return sim["counterexample"]
 
     assert counterexample("7") == counterexample("7")
+
+
+def test_a_device_option_naming_no_device_is_a_usage_error() -> None:
+    """As `rssmc simulate` says it: exit 2 and the devices there are, nothing verified."""
+    root = Path(__file__).resolve().parents[2]
+    run = subprocess.run([sys.executable, "-m", "rssm_dsl", "verify",
+                          str(root / "examples" / "verify" / "handover.rssm"),
+                          "--device-option", "nosuch:values=[1]"],
+                         capture_output=True, text=True, cwd=root, timeout=300)
+    assert run.returncode == 2, run.stdout + run.stderr
+    assert "no device nosuch in system handover" in run.stderr
+    assert "Traceback" not in run.stderr and run.stdout == ""
