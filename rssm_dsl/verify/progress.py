@@ -18,13 +18,16 @@ Definition. ``s`` *loses progress* when some reachable marking ``m`` has all thr
    iteration again.
 3. No firing sequence from ``m`` reaches a deadlock: the rest of the system keeps moving
    forever. (A run into a global deadlock is reported as a deadlock instead.)
+4. No firing sequence from ``m`` finishes ``s`` (1 is structural: before a switch to ``end``
+   whose guard the tracked values decide, ``s`` is unfinished and can only end).
 
-Equivalently, with 2 and 3: every terminal strongly connected component reachable from ``m``
-has edges and none of them is an ITERATION transition of ``s``. The check is the branching
-property "from every reachable marking where ``s`` is not finished, an iteration of ``s`` or a
-deadlock stays reachable" (``AG (unfinished_s -> EF (iteration_s or deadlock))``). Runs that
-merely *could* starve ``s`` forever in a non-terminal component, while ``s`` can still
-iterate, are not reported: they are scheduling choices (fairness), not design errors.
+Equivalently, with 2 to 4: every terminal strongly connected component reachable from ``m``
+has edges, none of them is an ITERATION transition of ``s`` and ``s`` is unfinished in all
+its markings. The check is the branching property "from every reachable marking where ``s``
+is not finished, an iteration of ``s``, its end or a deadlock stays reachable"
+(``AG (unfinished_s -> EF (iteration_s or finished_s or deadlock))``). Runs that merely
+*could* starve ``s`` forever in a non-terminal component, while ``s`` can still iterate, are
+not reported: they are scheduling choices (fairness), not design errors.
 
 Computation, all vectorised on the graph: the markings that can reach a deadlock and, per
 subsystem, those that can reach a source of an ITERATION edge of ``s`` (backward breadth-first
@@ -327,17 +330,18 @@ def _check_subsystems(nb: NetBits, graph: Graph, names: list[str], budget: Budge
                 unique_terminal[graph.src] & is_it[graph.trans]).any():
             checked.append(s)
             continue
-        seeds = np.zeros(n, dtype=np.bool_)
+        # a state from which s can still finish (end by design) is not a point of no
+        # return either: "unfinished" is structural and holds before a switch to `end`
+        # whose guard the tracked values decide (no iteration can follow it)
+        unfinished = unfinished_states(nb, graph, s)
+        seeds = ~unfinished
         seeds[graph.src[is_it[graph.trans]]] = True
         can_iterate = backward_closure(graph, seeds, None, budget)
-        stuck = ~can_iterate & ~can_deadlock
-        if stuck.any():
-            stuck &= unfinished_states(nb, graph, s)
+        stuck = ~can_iterate & ~can_deadlock & unfinished
         hits = np.flatnonzero(stuck)
         if hits.size:
             violations.append(_lasso(graph, s, int(hits[0]), budget))
         elif weak:
-            unfinished = unfinished_states(nb, graph, s)
             found = weak_starvation(graph, s, unfinished, is_it, budget)
             if found is not None:
                 violations.append(found)

@@ -493,8 +493,8 @@ class _Unfinished:
 def _loses_progress(graph: Lts, iterations: frozenset[int],
                     unfinished: Callable[[int], bool] = lambda f: bool(f & OBSERVED)) -> bool:
     """Is there a reachable state where the component's subsystem is unfinished (read off
-    its flags by ``unfinished``), from which no iteration of it and no deadlock can be
-    reached?"""
+    its flags by ``unfinished``), from which no iteration of it, no state where it has
+    finished and no deadlock can be reached?"""
     n = graph.size
     preds: list[list[int]] = [[] for _ in range(n)]
     sources: list[int] = []
@@ -503,8 +503,8 @@ def _loses_progress(graph: Lts, iterations: frozenset[int],
         for a, d in edges:
             preds[d].append(s)
             iterates = iterates or a in iterations
-        if iterates:
-            sources.append(s)
+        if iterates or not unfinished(graph.flags[s]):
+            sources.append(s)   # it iterates, or has finished (see progress.py, point 4)
     can_dead = _backward([s for s in range(n) if _dead(graph, s)], preds)
     can_iterate = _backward(sources, preds)
     return any(unfinished(graph.flags[s]) and not can_dead[s] and not can_iterate[s]
