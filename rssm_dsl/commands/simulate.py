@@ -29,7 +29,12 @@ if TYPE_CHECKING:
     from rssm_dsl.diagnostics import Diagnostic
     from rssm_dsl.interp import RunConfig
     from rssm_dsl.interp.program import Runtime
-    from rssm_dsl.interp.replay import Counterexample, PropertyWatch, ReplayVerdict
+    from rssm_dsl.interp.replay import (
+        Counterexample,
+        PropertyWatch,
+        ReplayVerdict,
+        ValueChoices,
+    )
     from rssm_dsl.interp.sampler import Sampler
     from rssm_dsl.interp.scheduler import RunResult
     from rssm_dsl.interp.summary import Snapshot
@@ -176,7 +181,7 @@ def _simulate(file: Path, steps: int | None, until: float | None, mode: str, see
               fmt: Format, quiet: bool, eager: bool = True,
               stall_periods: int = STALL_PERIODS, record: _Record | None = None) -> int:
     from rssm_dsl.interp import RunConfig, SimOptions, Simulator
-    from rssm_dsl.interp.replay import judge
+    from rssm_dsl.interp.replay import ValueChoices, chain, judge
     from rssm_dsl.interp.trace import TraceWriter
     from rssm_dsl.pipeline import compile_file
 
@@ -198,12 +203,14 @@ def _simulate(file: Path, steps: int | None, until: float | None, mode: str, see
         return EXIT_ERRORS
 
     cx, forced, watch = None, None, None
+    values: ValueChoices | None = None
     if replay is not None:
         loaded = _load_replay(comp, rt, replay, mode, fmt)
         if isinstance(loaded, int):
             rt.close_devices()
             return loaded
         cx, forced, watch = loaded
+        values = ValueChoices(rt, cx) if cx.values else None
 
     sampler = record.attach(rt) if record is not None else None
     if isinstance(sampler, str):
@@ -222,11 +229,13 @@ def _simulate(file: Path, steps: int | None, until: float | None, mode: str, see
                       stall_periods=stall_periods,
                       forced=forced, record_markings=cx is not None and cx.kind == "progress",
                       progress=painter, eager=eager,
-                      observe=watch.observe if watch is not None else None,
+                      observe=chain(values.observe if values is not None else None,
+                                    watch.observe if watch is not None else None),
                       trace_info={"spec": str(file),
                                   "replay": str(replay) if replay is not None else None})
     sim = Simulator(rt, opts)
     if watch is not None:
+        watch.chosen = values
         watch.attach(sim)
     try:
         result = sim.run()
@@ -236,7 +245,7 @@ def _simulate(file: Path, steps: int | None, until: float | None, mode: str, see
         if tracer is not None:
             tracer.close()
 
-    verdict = judge(cx, forced or [], result, sim, watch) if cx is not None else None
+    verdict = judge(cx, forced or [], result, sim, watch, values) if cx is not None else None
     diags = list(result.diagnostics)
     if verdict is not None:
         diags = [d for d in verdict.diagnostics if d not in diags] + diags

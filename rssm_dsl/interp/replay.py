@@ -31,6 +31,7 @@ path and Q false at every state from there on, the cycle replayed twice.
 from __future__ import annotations
 
 import json
+from collections.abc import Callable
 from dataclasses import field, replace
 from pathlib import Path
 from typing import TYPE_CHECKING, Any
@@ -64,6 +65,9 @@ class Counterexample:
     to_cycle: tuple[str, ...] = ()
     cycle: tuple[str, ...] = ()
     cycle_marking: tuple[str, ...] = ()
+    # values the verifier chose where the data does not decide them (a device's reading):
+    # (position in steps + to_cycle + cycle, subsystem, variable, value); see ValueChoices
+    values: tuple[tuple[int, str, str, Any], ...] = ()
 
     def sequence(self, cycles: int = CYCLES) -> list[str]:
         return [*self.steps, *self.to_cycle, *(list(self.cycle) * cycles)]
@@ -82,6 +86,24 @@ def _names(items: Any, what: str) -> tuple[str, ...]:
         else:
             raise ReplayFileError(f"{what}, step {k}: neither a transition name nor an object "
                                   "with \"name\"")
+    return tuple(out)
+
+
+def _values(items: Any) -> tuple[tuple[int, str, str, Any], ...]:
+    """The report's ``values``: ``{"step": n, "subsystem": s, "variable": v, "value": x}``
+    (``step`` from 1, as the report numbers the steps)."""
+    if not isinstance(items, list):
+        raise ReplayFileError("\"values\" is not a list")
+    out: list[tuple[int, str, str, Any]] = []
+    for k, item in enumerate(items, start=1):
+        ok = (isinstance(item, dict) and isinstance(item.get("step"), int)
+              and item["step"] >= 1 and isinstance(item.get("subsystem"), str)
+              and isinstance(item.get("variable"), str)
+              and isinstance(item.get("value"), (bool, int, str)))
+        if not ok:
+            raise ReplayFileError(f"\"values\", entry {k}: expected {{\"step\": n, "
+                                  "\"subsystem\": ..., \"variable\": ..., \"value\": ...}")
+        out.append((item["step"] - 1, item["subsystem"], item["variable"], item["value"]))
     return tuple(out)
 
 
@@ -120,7 +142,7 @@ def _from_object(d: dict[str, Any]) -> Counterexample:
                 kind, _names(value, key), _strings(d.get("marking")),
                 d.get("subsystem") if isinstance(d.get("subsystem"), str) else None,
                 _names(d.get("to_cycle", []), "to_cycle"), _names(d.get("cycle", []), "cycle"),
-                _strings(d.get("cycle_marking")))
+                _strings(d.get("cycle_marking")), _values(d.get("values", [])))
     raise ReplayFileError("no firing sequence (\"steps\") in the file")
 
 
@@ -199,11 +221,19 @@ def _last_step_unsafe(rule: Net, initial: frozenset[int], steps: list[int]) -> b
 
 
 def judge(cx: Counterexample, forced: list[int], result: RunResult,
-          sim: Simulator, watch: PropertyWatch | None = None) -> ReplayVerdict:
+          sim: Simulator, watch: PropertyWatch | None = None,
+          values: ValueChoices | None = None) -> ReplayVerdict:
     """Does the replayed run end where the verifier said? (A property's counterexample:
-    judged by its ``watch``.)"""
-    if watch is not None:
-        return watch.judge(result)
+    judged by its ``watch``.) The values set as the verifier chose them (``values``) are
+    listed in the message."""
+    verdict = watch.judge(result) if watch is not None else _judge(cx, forced, result, sim)
+    if values is not None and values.note():
+        verdict = replace(verdict, message=verdict.message + values.note())
+    return verdict
+
+
+def _judge(cx: Counterexample, forced: list[int], result: RunResult,
+           sim: Simulator) -> ReplayVerdict:
     net = sim.rt.net
     rule = sim.game.rule
     codes = {d.code for d in result.diagnostics}
@@ -251,6 +281,97 @@ def judge(cx: Counterexample, forced: list[int], result: RunResult,
                              f"rest of the system repeats a cycle of {size} firings "
                              f"(replayed {CYCLES} times)")
     return ReplayVerdict(True, f"replayed {n} firings")
+
+
+# ---------------------------------------------------------------------- chosen values
+
+
+class ValueChoices:
+    """The values a counterexample's verifier chose where the data does not decide them
+    (``Counterexample.values``: what a device reads, a value computed from untracked data),
+    set in the replayed run. The verifier takes any value of the domain there, the
+    interpreter the device's: without them a run the verifier found possible would replay
+    with other data. A value chosen at the fork of a transition function is set where the
+    function writes it (into the staged values, before the join commits them), else at the
+    join; one chosen elsewhere (a receive) at once. Each value that differs from the run's
+    own is listed in ``set``, as a forced condition is marked in the trace.
+
+    ``observe`` is the simulator's hook after each firing; ``apply`` sets what is pending
+    after a firing the replay makes outside the sequence (``PropertyWatch._settle``)."""
+
+    def __init__(self, rt: Runtime, cx: Counterexample) -> None:
+        self.rt = rt
+        self.at: dict[int, list[tuple[str, str, Any]]] = {}
+        for i, sub, var, value in cx.values:
+            self.at.setdefault(i, []).append((sub, var, value))
+        self.base, self.size = len(cx.steps) + len(cx.to_cycle), len(cx.cycle)
+        self.forks = dict(rt.net.new_sites.forks)
+        self.joins = dict(rt.net.new_sites.joins)
+        self.pending: dict[str, dict[str, tuple[Any, int]]] = {}   # value, step chosen
+        self.fired = 0
+        self.set: list[str] = []
+
+    def observe(self, t: int) -> None:
+        pos = self.fired
+        self.fired += 1
+        if self.size and pos >= self.base + self.size:
+            pos = self.base + (pos - self.base) % self.size
+        for sub, var, value in self.at.get(pos, ()):
+            if sub not in self.rt.subsystems:
+                continue
+            if self.forks.get(t) == sub:
+                self.pending.setdefault(sub, {})[var] = (value, self.fired)
+            else:
+                self._put(sub, var, value, self.fired)
+        self.apply(t)
+
+    def apply(self, t: int) -> None:
+        for sub in list(self.pending):
+            st = self.rt.subsystems[sub]
+            joined = self.joins.get(t) == sub
+            for var, (value, step) in list(self.pending[sub].items()):
+                if var in st.stage or joined:
+                    self._put(sub, var, value, step)
+                    del self.pending[sub][var]
+            if joined or not self.pending[sub]:
+                del self.pending[sub]
+
+    def _put(self, sub: str, var: str, value: Any, step: int) -> None:
+        """Set ``var`` of ``sub`` (staged when its transition function has written it) to
+        the ``value`` chosen at firing ``step`` (from 1)."""
+        st = self.rt.subsystems[sub]
+        where = st.stage if var in st.stage else st.vars
+        old = where.get(var)
+        if type(old) is not type(value) or old != value:
+            self.set.append(f"{sub}.{var} = {_show(value)} (chosen at step {step}; the run "
+                            f"had {_show(old)})")
+        where[var] = value
+
+    def note(self) -> str:
+        """What the replay set, for the verdict's message ("" when nothing)."""
+        if not self.set:
+            return ""
+        return ("; values the data does not decide, set as the verifier chose them: "
+                + ", ".join(self.set))
+
+
+def _show(v: Any) -> str:
+    return str(v).lower() if isinstance(v, bool) else str(v)
+
+
+def chain(*hooks: Callable[[int], None] | None) -> Callable[[int], None] | None:
+    """One ``SimOptions.observe`` calling each hook given, in order (None when none)."""
+    live = [h for h in hooks if h is not None]
+    if not live:
+        return None
+    if len(live) == 1:
+        return live[0]
+
+    def observe(t: int) -> None:
+        for h in live:
+            h(t)
+
+    return observe
 
 
 # ---------------------------------------------------------------------- properties
@@ -308,6 +429,7 @@ class PropertyWatch:
         self.fired = 0
         self.seen: list[_Seen] = []
         self.sim: Simulator | None = None
+        self.chosen: ValueChoices | None = None   # the chosen values, set in _settle too
 
     # -- during the run
     def attach(self, sim: Simulator) -> None:
@@ -355,6 +477,8 @@ class PropertyWatch:
                 if not ready:
                     break
                 sim.fire[ready[0]]()
+                if self.chosen is not None:
+                    self.chosen.apply(ready[0])
                 if ready[0] in self.joins:
                     self._resolve(sid)
                     break

@@ -59,7 +59,13 @@ from rssm_dsl.hpn.flat import FlatCondition, FlatNet, FlatPlace, FlatTransition
 from rssm_dsl.hpn.flatten import flatten
 from rssm_dsl.hpn.ir import HPN, Arc, FusionSet, Place
 from rssm_dsl.semantics import cases as case_rule
-from rssm_dsl.verify.report import Counterexample, FreeCondition, VerifyReport
+from rssm_dsl.verify.report import (
+    Chosen,
+    Counterexample,
+    FreeCondition,
+    StepValue,
+    VerifyReport,
+)
 
 MAX_INPUTS = 10           # 2^n variants of a fork: beyond, new(x) of the subsystem stays free
 
@@ -97,6 +103,9 @@ class TrackedNet:
     # variant takes it (None: not tracked, a free choice)
     combinations: dict[str, tuple[bool | None, ...]] = field(default_factory=dict)
     values: tuple[str, ...] = ()          # the values tracked (rssm_dsl/verify/valuenet.py)
+    # per transition of net: the values its variant writes that the data does not decide
+    # (a device's reading, a float...: any value of the domain), (subsystem, variable, value)
+    chosen: dict[int, tuple[Chosen, ...]] = field(default_factory=dict)
 
     @property
     def changed(self) -> bool:
@@ -106,6 +115,11 @@ class TrackedNet:
         """A firing sequence of ``net`` as the flat net's."""
         return tuple(self.source.transitions[self.origin[t.index]] for t in steps)
 
+    def choices(self, steps: Iterable[FlatTransition]) -> tuple[StepValue, ...]:
+        """The values chosen along a firing sequence of ``net`` (``chosen``), each with its
+        position in the sequence."""
+        return tuple((i, *c) for i, t in enumerate(steps) for c in self.chosen.get(t.index, ()))
+
     def labels(self, labels: Iterable[str]) -> tuple[str, ...]:
         """Place labels of ``net`` without new(x)'s."""
         hidden = {p.label or p.name for p in self.net.places
@@ -114,7 +128,8 @@ class TrackedNet:
 
     def counterexample(self, c: Counterexample) -> Counterexample:
         return dataclasses.replace(
-            c, steps=self.steps(c.steps), marking=self.labels(c.marking),
+            c, values=self.choices((*c.steps, *c.to_cycle, *c.cycle)) if self.chosen else (),
+            steps=self.steps(c.steps), marking=self.labels(c.marking),
             doubled=self.labels(c.doubled), to_cycle=self.steps(c.to_cycle),
             cycle=self.steps(c.cycle), cycle_marking=self.labels(c.cycle_marking))
 

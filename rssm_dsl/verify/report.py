@@ -43,6 +43,10 @@ EXIT_CODES = {Verdict.VERIFIED: EXIT_VERIFIED, Verdict.VIOLATED: EXIT_VIOLATED,
 
 # what "loses progress" assumes of the schedule and of the free choices (printed with it)
 FAIRNESS = ("strong", "weak")
+# a value the verifier chose where the data does not decide it: (subsystem, variable, value);
+# with the position of the firing that chose it in a counterexample's sequence
+Chosen = tuple[str, str, Any]
+StepValue = tuple[int, str, str, Any]
 PROGRESS_ASSUMPTIONS = {
     "strong": (
         "strong fairness: a subsystem loses progress when some reachable state lets no "
@@ -105,6 +109,9 @@ class Counterexample:
     cycle: tuple[FlatTransition, ...] = ()
     cycle_marking: tuple[str, ...] = ()
     where: tuple[tuple[str, str], ...] = ()   # (label, file:line) of the marking's places
+    # values the data does not decide (a device's reading...), as the verifier chose them
+    # on this path: (position in steps + to_cycle + cycle, subsystem, variable, value)
+    values: tuple[StepValue, ...] = ()
 
     def stuck_at(self) -> tuple[str, ...]:
         """For a loss of progress: where the subsystem stands in the marking reached (its
@@ -145,6 +152,11 @@ class Counterexample:
             if self.cycle:
                 out.append("    and then forever:")
                 out += [f"        {step_text(t)}" for t in self.cycle]
+        if self.values:
+            out.append("    values the data does not decide (read from a device or computed "
+                       "from untracked data), as chosen on this path:")
+            out += [f"        step {i + 1}: {sub}.{var} = {show_value(v)}"
+                    for i, sub, var, v in self.values]
         return out
 
     def to_json(self) -> dict[str, Any]:
@@ -167,12 +179,20 @@ class Counterexample:
             data["to_cycle"] = [_transition_json(t) for t in self.to_cycle]
             data["cycle"] = [_transition_json(t) for t in self.cycle]
             data["cycle_marking"] = list(self.cycle_marking)
+        if self.values:
+            data["values"] = [{"step": i + 1, "subsystem": sub, "variable": var, "value": v}
+                              for i, sub, var, v in self.values]
         return data
 
 
 def _transition_json(t: FlatTransition) -> dict[str, Any]:
     return {"name": t.name, "label": t.label, "file": t.span.file, "line": t.span.line,
             "column": t.span.column, "role": t.role.value}
+
+
+def show_value(v: Any) -> str:
+    """A finite value as the spec writes it (``true``, ``3``, ``grasp``)."""
+    return str(v).lower() if isinstance(v, bool) else str(v)
 
 
 @dataclass(frozen=True)

@@ -348,7 +348,7 @@ def _lift_point(net: FlatNet, whole: _Whole, sl: Slice, cx: Counterexample) -> _
     return _Point(net, stuck, None, Counterexample(
         "progress", whole.steps(prefix), marking_labels(net, m), subsystem=None,
         where=marking_where(net, m), to_cycle=whole.steps(into[len(prefix):]),
-        cycle=whole.steps(back.path()[len(into):]),
+        cycle=whole.steps(back.path()[len(into):]), values=whole.values(back.path()),
         cycle_marking=marking_labels(net, whole.raw(turn.marking))))
 
 

@@ -47,6 +47,7 @@ from rssm_dsl.verify.datanet import track_new
 from rssm_dsl.verify.progress import live_places
 from rssm_dsl.verify.report import (
     Counterexample,
+    StepValue,
     Unconfirmed,
     Verdict,
     VerifyReport,
@@ -257,6 +258,7 @@ class _Whole:
         self.source = source
         self.budget = budget
         self.net: FlatNet | None = t.net if t is not None and t.values else None
+        self.chosen = t.chosen if self.net is not None and t is not None else {}
         self.origin: tuple[int, ...] = t.origin if t is not None else ()
         self.place_origin: tuple[int | None, ...] = t.place_origin if t is not None else ()
         self.variants: dict[int, list[int]] = {}
@@ -289,6 +291,10 @@ class _Whole:
     def steps(self, nodes_path: Sequence[int]) -> tuple[FlatTransition, ...]:
         """A path of the tracked net as the flat net's transitions."""
         return tuple(self.source.transitions[self.origin[u]] for u in nodes_path)
+
+    def values(self, nodes_path: Sequence[int]) -> tuple[StepValue, ...]:
+        """The values chosen along a path of the tracked net (``TrackedNet.choices``)."""
+        return tuple((i, *c) for i, u in enumerate(nodes_path) for c in self.chosen.get(u, ()))
 
     def _fire(self, node: _Node, raws: Sequence[int], out: dict[frozenset[int], _Node],
               skip: frozenset[int] | None = None) -> None:
@@ -502,7 +508,8 @@ class _Whole:
                 raise ReplayError("with the values tracked, the rest of the system does not "
                                   "stop where it stops with tokens only")
             return Counterexample("deadlock", self.steps(end.path()),
-                                  marking_labels(net, self.raw(end.marking)))
+                                  marking_labels(net, self.raw(end.marking)),
+                                  values=self.values(end.path()))
         found = self.lasso(starts, to_cycle, cycle)
         if found is None:
             raise ReplayError("with the values tracked, what the rest of the system does "
@@ -640,7 +647,7 @@ class _Lifted:
             self.progress.append(Counterexample(
                 "progress", w.steps(prefix), self._labels(m), subsystem=s,
                 where=marking_where(net, m), to_cycle=w.steps(into[len(prefix):]),
-                cycle=w.steps(back.path()[len(into):]),
+                cycle=w.steps(back.path()[len(into):]), values=w.values(back.path()),
                 cycle_marking=self._labels(w.raw(turn.marking))))
 
     def slice_progress(self, sl: Slice, cx: Counterexample) -> None:
@@ -699,7 +706,7 @@ class _Lifted:
         self.progress.append(Counterexample(
             "progress", w.steps(prefix), self._labels(m), subsystem=subsystem,
             where=marking_where(self.net, m), to_cycle=w.steps(into[len(prefix):]),
-            cycle=w.steps(back.path()[len(into):]),
+            cycle=w.steps(back.path()[len(into):]), values=w.values(back.path()),
             cycle_marking=self._labels(w.raw(turn.marking))))
 
     def slice_unsafe(self, sl: Slice, cx: Counterexample) -> None:

@@ -272,7 +272,7 @@ def _confirm_with_values(net: FlatNet, sl: Slice, plan: ValuePlan, budget: Budge
         if _value_at(formulas[0], whole.net, node.marking) is False:
             return Counterexample("property", whole.steps(node.path()),
                                   marking_labels(net, whole.raw(node.marking)),
-                                  subsystem=prop.name)
+                                  subsystem=prop.name, values=whole.values(node.path()))
     return None
 
 
@@ -335,7 +335,9 @@ def _lift(net: FlatNet, sl: Slice | None, tracked: TrackedNet, prefix: Sequence[
         return Counterexample("property", steps, _marking_after(net, steps),
                               subsystem=prop.name, to_cycle=more, cycle=loop,
                               cycle_marking=_marking_after(net, (*steps, *more)) if loop
-                              else ())
+                              else (),
+                              values=tracked.choices(tn[t] for t in (*prefix, *to_cycle,
+                                                                     *cycle)))
     fired, m = replay_group(sl, sl.whole_steps(steps))
     reached = marking_labels(net, m)
     if not more and not loop:

@@ -36,6 +36,7 @@ from typing import Any
 from rssm_dsl.hpn.flat import FlatNet, FlatPlace, FlatTransition
 from rssm_dsl.verify.datanet import TrackedNet
 from rssm_dsl.verify.dataplan import ANY, MAX_VALUATIONS, Outcome, Step, ValuePlan, valuations
+from rssm_dsl.verify.report import Chosen
 from rssm_dsl.verify.slicing import channels
 
 
@@ -173,14 +174,19 @@ def track_values(t: TrackedNet, plan: ValuePlan | None,
     transitions: list[FlatTransition] = []
     origin: list[int] = []
     decided: set[int] = set()        # source transitions whose guard the values decide
+    chosen: dict[int, tuple[Chosen, ...]] = {}
     for u in net.transitions:
         s = v.steps.get(u.index)
         variants = _variants(u, s, cone, plan, at) if s is not None else None
         if variants is None:
-            variants = [(u.name, u.pre, u.post)]
+            variants = [(u.name, u.pre, u.post, ())]
         elif s is not None and s.holds is not None and _decides(s, cone, plan):
             decided.add(t.origin[u.index])
-        for name, pre, post in variants:
+        for name, pre, post, undecided in variants:
+            if undecided:
+                chosen[len(transitions)] = tuple(
+                    (sub, key[len(sub) + 1:], d) for key, d in undecided
+                    if (sub := plan.subsystem_of.get(key)) is not None)
             transitions.append(dataclasses.replace(
                 u, index=len(transitions), name=name, pre=tuple(sorted(set(pre))),
                 post=tuple(sorted(set(post)))))
@@ -191,7 +197,8 @@ def track_values(t: TrackedNet, plan: ValuePlan | None,
     free = tuple(c for c in t.free if c.transition not in decided)
     combos: dict[str, tuple[bool | None, ...]] = {}   # forks renamed: nothing reads them now
     return TrackedNet(out, t.source, tuple(origin), tuple(place_origin), tracked, free, combos,
-                      tuple(sorted(plan.vars[k].label for k in cone)))
+                      tuple(sorted(plan.vars[k].label for k in cone)),
+                      {k: c for k, c in chosen.items() if c})
 
 
 def _show(d: Any) -> str:
@@ -208,16 +215,20 @@ def _decides(s: Step, cone: set[str], plan: ValuePlan) -> bool:
     return all(s.holds(val) is not None for val in valuations(keys, doms))
 
 
+Variant = tuple[str, tuple[int, ...], tuple[int, ...], tuple[tuple[str, Any], ...]]
+
+
 def _variants(u: FlatTransition, s: Step, cone: set[str], plan: ValuePlan,
-              at: Mapping[tuple[str, Any], int]
-              ) -> list[tuple[str, tuple[int, ...], tuple[int, ...]]] | None:
+              at: Mapping[tuple[str, Any], int]) -> list[Variant] | None:
+    """The variants of ``u``: name, pre and post places, and the values it writes that no
+    outcome decides (chosen among the domain's: a device's reading...)."""
     reads = [r for r in s.reads if r in cone]
     writes = [w for w in s.writes if w in cone]
     if not reads and not writes:
         return None
     keys = [*reads, *(w for w in writes if w not in reads)]
     doms = {k: plan.vars[k].domain for k in keys}
-    out: list[tuple[str, tuple[int, ...], tuple[int, ...]]] = []
+    out: list[Variant] = []
     cache: dict[tuple[Any, ...], list[Outcome]] = {}
     for val in valuations(keys, doms):
         rkey = tuple(val[r] for r in reads)
@@ -236,7 +247,10 @@ def _variants(u: FlatTransition, s: Step, cone: set[str], plan: ValuePlan,
                 if post in seen:
                     continue
                 seen.add(post)
-                out.append((valued(u.name, len(out) + 1), (*u.pre, *pre), (*u.post, *post)))
+                free = tuple((w, d) for w, c, d in zip(writes, choices, new, strict=True)
+                             if len(c) > 1)
+                out.append((valued(u.name, len(out) + 1), (*u.pre, *pre), (*u.post, *post),
+                            free))
     return out
 
 

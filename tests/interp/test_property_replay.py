@@ -164,3 +164,44 @@ def test_e809_names_every_subsystem_that_completes_no_iteration(tmp_path: Path) 
     assert "waits for: channel" not in message
     subsystems = {s["id"]: s for s in out["summary"]["subsystems"]}
     assert subsystems["picker2.c"]["i"] == 1          # counted, never completed
+
+
+DEVICE_READING = SPECS / "device_reading.rssm"
+
+
+def test_values_the_data_does_not_decide_are_set_as_the_verifier_chose_them(
+        tmp_path: Path) -> None:
+    """device_reading: `always a.c.k <= 1` is violated when the gauge reads 2, which the
+    verifier allows (a device reads any value of its type) and the interpreter's
+    ConstantDevice never gives (it reads 0). The report's counterexample names the value it
+    chose and at which step; the replay sets it there and reproduces the violation, saying
+    what it set. Without the values, the same steps replay with the device's 0 and the
+    violation is not reproduced: the values are what makes the trace that run."""
+    path = tmp_path / "report.json"
+    report = verified(DEVICE_READING, path)
+    cx = violated(report)["counterexample"]
+    chosen = cx["values"]
+    assert [(v["subsystem"], v["variable"], v["value"]) for v in chosen] == [
+        ("a.r.sense", "level", 2)]
+    assert 1 <= chosen[0]["step"] <= len(cx["steps"])
+    code, out = replay(DEVICE_READING, path)
+    assert code == 1, out
+    assert out["replay"]["reproduced"] is True, out["replay"]
+    assert "a.r.sense.level = 2" in out["replay"]["message"]
+    assert "a.c.k = 2" in out["replay"]["message"]
+
+    del cx["values"]
+    bare = tmp_path / "bare.json"
+    bare.write_text(json.dumps(cx), encoding="utf-8")
+    code, out = replay(DEVICE_READING, bare)
+    assert out["replay"]["reproduced"] is False, out["replay"]
+    assert "a.c.k <= 1" in out["replay"]["message"]
+
+
+def test_a_malformed_values_entry_is_a_usage_error(tmp_path: Path) -> None:
+    path = tmp_path / "cx.json"
+    path.write_text(json.dumps({"kind": "deadlock", "steps": [], "values": [
+        {"step": 0, "subsystem": "a.c", "variable": "k", "value": 1}]}), encoding="utf-8")
+    r = rssmc("simulate", DEVICE_READING, "--replay", path)
+    assert r.returncode == 2, r.stderr
+    assert "\"values\", entry 1" in r.stderr and "Traceback" not in r.stderr

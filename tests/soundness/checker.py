@@ -239,20 +239,25 @@ def _replay_cx(cx: Counterexample) -> Any:
 
     return ReplayCx(cx.kind, tuple(t.name for t in cx.steps), cx.marking, cx.subsystem,
                     tuple(t.name for t in cx.to_cycle), tuple(t.name for t in cx.cycle),
-                    cx.cycle_marking)
+                    cx.cycle_marking, cx.values)
 
 
-def _simulate(comp: Compilation, names: list[str]) -> tuple[Any, Any, list[int], Any]:
-    """The interpreter forced through ``names``: (simulator, result, steps, runtime)."""
+def _simulate(comp: Compilation, names: list[str],
+              cx: Any = None) -> tuple[Any, Any, list[int], Any, Any]:
+    """The interpreter forced through ``names``, with the values ``cx`` (a replay
+    counterexample) chose set as ``rssmc simulate --replay`` sets them: (simulator, result,
+    steps, runtime, the ValueChoices or None)."""
     from rssm_dsl.interp import SimOptions, Simulator, build_runtime
-    from rssm_dsl.interp.replay import resolve_steps
+    from rssm_dsl.interp.replay import ValueChoices, resolve_steps
 
     rt = build_runtime(comp)
     steps, bad = resolve_steps(rt.net, names, "counterexample")
     if bad:
         raise ValueError(bad[0].message)
-    sim = Simulator(rt, SimOptions(forced=steps, record_markings=True))
-    return sim, sim.run(), steps, rt
+    values = ValueChoices(rt, cx) if cx is not None and cx.values else None
+    sim = Simulator(rt, SimOptions(forced=steps, record_markings=True,
+                                   observe=values.observe if values is not None else None))
+    return sim, sim.run(), steps, rt, values
 
 
 def replay(comp: Compilation, cx: Counterexample) -> tuple[bool, str]:
@@ -261,8 +266,8 @@ def replay(comp: Compilation, cx: Counterexample) -> tuple[bool, str]:
     from rssm_dsl.interp.replay import judge
 
     rcx = _replay_cx(cx)
-    sim, result, steps, _ = _simulate(comp, rcx.sequence())
-    verdict = judge(rcx, steps, result, sim)
+    sim, result, steps, _, values = _simulate(comp, rcx.sequence(), rcx)
+    verdict = judge(rcx, steps, result, sim, values=values)
     return verdict.reproduced, verdict.message
 
 
@@ -276,7 +281,8 @@ def property_violated(comp: Compilation, name: str, cx: Counterexample) -> tuple
 
     assert comp.system is not None
     prop = next(p for p in comp.system.properties if p.name == name)
-    sim, result, _, rt = _simulate(comp, [t.name for t in cx.steps])
+    rcx = _replay_cx(cx)
+    sim, result, _, rt, _ = _simulate(comp, list(rcx.steps), rcx)
     if result.reason not in ("replayed", "finished", "deadlock"):
         return False, f"the replay stopped ({result.reason}): {result.message}"
     marked = sim.game.marking()
