@@ -32,7 +32,8 @@ from pathlib import Path
 ROOT = Path(__file__).resolve().parent.parent
 DEFAULT_TESTS = ("tests/semantics", "tests/core", "tests/interp", "tests/verify/test_verify.py",
                  "tests/verify/test_statespace.py", "tests/hpn",
-                 "tests/verify/test_userprops.py", "tests/verify/test_stubborn.py")
+                 "tests/verify/test_userprops.py", "tests/verify/test_stubborn.py",
+                 "tests/verify/test_deadmarking.py")
 # tests/core/test_mutant_list.py checks that each mutant's text occurs once in the tree: in a
 # mutated copy it fails by construction, so it would "kill" every mutant
 SELECT = ["-m", "not ros2", "-k", "not golden", "--ignore", "tests/core/test_mutant_list.py"]
@@ -142,8 +143,8 @@ MUTANTS = (
            "V dropped for the shortcut: a visible transition in conflict with nothing is a "
            "stubborn set on its own",
            "rssm_dsl/verify/stubborn.py",
-           "            if nb.conflict[t] == 1 << t and not visible >> t & 1:\n",
-           "            if nb.conflict[t] == 1 << t:\n"),
+           "            if self.dependent[t] == 1 << t and not visible >> t & 1:\n",
+           "            if self.dependent[t] == 1 << t:\n"),
     Mutant("stubborn-no-proviso",
            "L dropped: no fully expanded marking on the cycles of the reduced graph "
            "(a transition may be ignored for ever)",
@@ -151,17 +152,51 @@ MUTANTS = (
            "                    if stopped is not None or not proviso:\n",
            "                    if True:\n"),
     Mutant("stubborn-no-key-conflicts",
-           "D1/D2 dropped for an enabled transition: its conflicting transitions are not "
+           "D1/D2 dropped for an enabled transition: its dependent transitions are not "
            "added to the set",
            "rssm_dsl/verify/stubborn.py",
-           "                add = conflict[t]\n",
+           "                add = dependent[t]\n",
            "                add = 0\n"),
-    Mutant("stubborn-no-scapegoat",
-           "D1 dropped for a disabled transition with one unmarked input place: the "
-           "producers of that place are not added",
+    Mutant("stubborn-no-takers",
+           "an enabled transition's set lacks those that empty one of its input places (only "
+           "those needing what it empties are added)",
            "rssm_dsl/verify/stubborn.py",
-           "                add = producers[missing.bit_length() - 1]\n",
-           "                add = 0\n"),
+           "                self.dependent[t] |= self.leave[p]\n",
+           "                pass\n"),
+    Mutant("stubborn-no-needers",
+           "an enabled transition's set lacks those needing a place it empties",
+           "rssm_dsl/verify/stubborn.py",
+           "                self.dependent[t] |= nb.consumers[p]\n",
+           "                pass\n"),
+    Mutant("stubborn-no-scapegoat",
+           "D1 dropped for a disabled transition: neither the producers of an unmarked input "
+           "place nor a necessary enabling set is added",
+           "rssm_dsl/verify/stubborn.py",
+           "                    for makers in (producers[q], *self._leaving(m, q)):\n",
+           "                    for makers in (0,):\n"),
+    Mutant("stubborn-nes-of-the-wrong-place",
+           "the necessary enabling set of an unmarked place taken from the semiflow's "
+           "unmarked places instead of the marked one",
+           "rssm_dsl/verify/stubborn.py",
+           "                out.append(self.leave[here.bit_length() - 1])\n",
+           "                out.append(self.leave[p])\n"),
+    # the relaxation of deadlock freedom (verify/deadmarking.py); killed by
+    # tests/verify/test_deadmarking.py (run: --only deadmarking)
+    Mutant("deadmarking-first-candidate-only",
+           "the search tries only the first possible place of the semiflow it branches on",
+           "rssm_dsl/verify/deadmarking.py",
+           "            for p in reversed(bits(self.flows[flow] & ~off)):\n",
+           "            for p in bits(self.flows[flow] & ~off)[:1]:\n"),
+    Mutant("deadmarking-unit-marks",
+           "a transition with one input place left open gets it marked instead of unmarked",
+           "rssm_dsl/verify/deadmarking.py",
+           "                todo.append((open_.bit_length() - 1, False))\n",
+           "                todo.append((open_.bit_length() - 1, True))\n"),
+    Mutant("deadmarking-empty-forced-marked",
+           "the last possible place of a semiflow is not forced: a semiflow may end with none",
+           "rssm_dsl/verify/deadmarking.py",
+           "            if not left:\n                raise _Conflict\n",
+           "            if not left:\n                continue\n"),
     Mutant("stubborn-no-up-set",
            "the up-set dropped: markings where a firing is unsafe may be skipped",
            "rssm_dsl/verify/stubborn.py",

@@ -86,6 +86,24 @@ class InvariantResult:
     def proves_safe(self, nplaces: int) -> bool:
         return len(self.proof) == nplaces
 
+    def token_flows(self) -> tuple[list[int], int]:
+        """The 0/1 semiflows as place masks: those carrying one token (exactly one of
+        their places is marked in every reachable marking), and the places of those
+        carrying none (never marked)."""
+        flows: list[int] = []
+        empty = 0
+        for i in self.invariants:
+            if any(w != 1 for _, w in i.weights):
+                continue
+            mask = 0
+            for p, _ in i.weights:
+                mask |= 1 << p
+            if i.tokens == 1:
+                flows.append(mask)
+            elif i.tokens == 0:
+                empty |= mask
+        return flows, empty
+
     def uncovered(self, nplaces: int) -> list[int]:
         """Places whose safeness the invariants do not prove."""
         return [p for p in range(nplaces) if p not in self.proof]

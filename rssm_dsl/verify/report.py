@@ -492,7 +492,10 @@ def _summary_lines(r: VerifyReport) -> list[str]:
         "not checked (--no-progress-check)" if not r.progress_requested else undecided))
     if r.progress_requested:
         out.append(f"  assuming:   {PROGRESS_ASSUMPTIONS[r.fairness]}")
-    if r.method:
+    if r.method == "invariants":
+        out.append(f"  states:     none explored (decided from the place invariants), "
+                   f"{r.seconds:.2f} s")
+    elif r.method:
         out.append(f"  states:     {r.states} explored ({r.method}"
                    f"{'' if r.complete else ', incomplete'}), {r.edges} firings, depth "
                    f"{r.depth}, {r.seconds:.2f} s")

@@ -81,7 +81,7 @@ from __future__ import annotations
 
 import time
 from collections import deque
-from collections.abc import Callable
+from collections.abc import Callable, Sequence
 
 import numpy as np
 
@@ -97,7 +97,8 @@ class StubbornExplorer:
     """Stubborn-set breadth-first search over int markings."""
 
     def __init__(self, net_bits: NetBits, safe_places: int = 0, reduce: bool = True,
-                 proviso: bool = False, visible: int = 0) -> None:
+                 proviso: bool = False, visible: int = 0,
+                 semiflows: Sequence[int] = ()) -> None:
         nb = net_bits
         self.nb = nb
         self.reduce = reduce
@@ -106,7 +107,6 @@ class StubbornExplorer:
         self.pre = nb.pre
         self.post = nb.post
         self.produce = nb.produce
-        self.conflict = nb.conflict
         self.producers = nb.producers
         # firing t may disable the consumers of what it empties, may enable those of what it fills
         self.disable = [0] * nb.ntrans
@@ -122,9 +122,28 @@ class StubbornExplorer:
         for p in bits(all_places & ~safe_places):
             if nb.producers[p]:
                 self.watched.append((p, 1 << p, bits(nb.producers[p])))
-        self.lonely = 0             # transitions sharing no input place with another one
+        # one-token semiflows (place masks): a place of one is marked only after the token
+        # has left the place of it marked now (``leave``), see ``scapegoat``
+        self.flows_of: list[list[int]] = [[] for _ in range(nb.nplaces)]
+        for flow in semiflows:
+            for p in bits(flow):
+                self.flows_of[p].append(flow)
+        self.leave = [0] * nb.nplaces       # per place: transitions emptying it
         for t in range(nb.ntrans):
-            if nb.conflict[t] == 1 << t and not visible >> t & 1:
+            for p in bits(nb.consume[t]):
+                self.leave[p] |= 1 << t
+        # dependent[t]: t and the transitions that can take a token t needs (they empty one
+        # of its input places) or need a token t takes (it empties one of theirs); two that
+        # only read a place (take it and put it back: a tracked value) commute
+        self.dependent = [1 << t for t in range(nb.ntrans)]
+        for t in range(nb.ntrans):
+            for p in bits(nb.pre[t]):
+                self.dependent[t] |= self.leave[p]
+            for p in bits(nb.consume[t]):
+                self.dependent[t] |= nb.consumers[p]
+        self.lonely = 0             # transitions dependent on no other one
+        for t in range(nb.ntrans):
+            if self.dependent[t] == 1 << t and not visible >> t & 1:
                 self.lonely |= 1 << t
 
     def initial_enabled(self, m: int) -> int:
@@ -159,7 +178,7 @@ class StubbornExplorer:
     def closure(self, m: int, seed: int, en: int, limit: int) -> int | None:
         """The stubborn set grown from ``seed``, or None once it has ``limit`` enabled
         transitions (it cannot beat the best set found so far)."""
-        pre, conflict, producers = self.pre, self.conflict, self.producers
+        pre, dependent, producers = self.pre, self.dependent, self.producers
         s = seed
         work = seed
         count = (seed & en).bit_count()
@@ -171,23 +190,24 @@ class StubbornExplorer:
             t = low.bit_length() - 1
             missing = pre[t] & ~m
             if not missing:
-                add = conflict[t]
+                add = dependent[t]
                 if self.visible >> t & 1:       # V: one enabled visible brings them all
                     add |= self.visible
-            elif missing & (missing - 1) == 0:
-                add = producers[missing.bit_length() - 1]
-            else:       # several unmarked inputs: the one bringing the fewest new transitions
+            else:       # disabled: the scapegoat bringing the fewest new transitions
                 add = -1
                 best = -1
                 while missing:
                     low_q = missing & -missing
                     missing ^= low_q
-                    makers = producers[low_q.bit_length() - 1]
-                    extra = (makers & ~s).bit_count()
-                    if best < 0 or extra < best:
-                        best, add = extra, makers
-                        if extra == 0:
-                            break
+                    q = low_q.bit_length() - 1
+                    for makers in (producers[q], *self._leaving(m, q)):
+                        extra = (makers & ~s).bit_count()
+                        if best < 0 or extra < best:
+                            best, add = extra, makers
+                            if extra == 0:
+                                break
+                    if best == 0:
+                        break
             new = add & ~s
             if new:
                 s |= new
@@ -196,6 +216,17 @@ class StubbornExplorer:
                 if count >= limit:
                     return None
         return s
+
+    def _leaving(self, m: int, p: int) -> list[int]:
+        """Necessary enabling sets of the unmarked place ``p`` besides its producers: for
+        each one-token semiflow holding ``p``, the transitions that empty the place of it
+        marked in ``m`` (the token must leave that place before ``p`` can be marked)."""
+        out = []
+        for flow in self.flows_of[p]:
+            here = m & flow
+            if here and here & (here - 1) == 0:
+                out.append(self.leave[here.bit_length() - 1])
+        return out
 
     def stubborn(self, m: int, en: int) -> int:
         """The enabled transitions of a small stubborn set of ``m`` (``en`` != 0)."""
@@ -496,6 +527,7 @@ def explore_reduced(
     for_progress: bool = False,
     budget: Budget | None = None,
     visible: int = 0,
+    semiflows: Sequence[int] = (),
 ) -> SearchResult:
     """Deadlocks and safeness by stubborn-set search (see the module docstring).
 
@@ -506,6 +538,6 @@ def explore_reduced(
     ``for_progress`` for the proviso).
     """
     explorer = StubbornExplorer(net_bits, safe_places, reduce, proviso=for_progress,
-                                visible=visible)
+                                visible=visible, semiflows=semiflows)
     return explorer.explore(max_states, time_limit, max_counterexamples, progress,
                             keep_graph=for_progress, budget=budget)

@@ -181,13 +181,19 @@ def _explore(net: FlatNet, keep: tuple[str, ...], formulas: list[Formula],
     # stubborn sets keeping every transition that can change an atom visible, with the
     # cycle proviso (stubborn.py): they keep both kinds of property (docs/verify.md)
     safe = 0            # the places one-token semiflows prove safe need no up-set
+    flows: list[int] = []   # ... and those carrying one token give necessary enabling sets
     for f in one_token_semiflows(tracked.net, range(len(tracked.net.places)),
                                  lambda: budget.poll() is not None):
+        mask = 0
         for p in f.support:
-            safe |= 1 << p
+            mask |= 1 << p
+        safe |= mask
+        if f.tokens == 1 and all(w == 1 for _, w in f.weights):
+            flows.append(mask)
     reduced = explore_reduced(nb, safe_places=safe, max_states=max_states,
                               max_counterexamples=1, for_progress=True, budget=budget,
-                              visible=visible_transitions(tracked.net, atoms))
+                              visible=visible_transitions(tracked.net, atoms),
+                              semiflows=flows)
     return _explored(tracked, sl, reduced, where, reduction)
 
 

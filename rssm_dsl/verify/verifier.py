@@ -44,7 +44,7 @@ from __future__ import annotations
 import contextlib
 import dataclasses
 import time
-from collections.abc import Collection
+from collections.abc import Collection, Sequence
 from typing import TYPE_CHECKING
 
 from rssm_core.records import dataclass
@@ -53,6 +53,7 @@ from rssm_dsl.verify.budget import Budget, LimitReached
 from rssm_dsl.verify.compose.check import ComposeResult, compose_check
 from rssm_dsl.verify.cover import one_token_semiflows
 from rssm_dsl.verify.datanet import track_new
+from rssm_dsl.verify.deadmarking import dead_markings
 from rssm_dsl.verify.invariants import DEFAULT_MAX_ROWS, InvariantResult, place_invariants
 from rssm_dsl.verify.netbits import NetBits, bits, to_mask
 from rssm_dsl.verify.progress import check_progress, subsystems_of
@@ -179,9 +180,15 @@ def verify(net: FlatNet, options: VerifyOptions | None = None) -> VerifyReport:
                else None)
     safe_mask = to_mask(inv.safe_places) if inv else 0
     safe_by_invariants = inv is not None and inv.proves_safe(nb.nplaces)
-    full, comp, reduced = _searches(net, nb, opts, safe_mask, budget, notes)
+    no_dead = (_no_dead_marking(nb, inv, budget, notes)
+               if opts.reduction == "auto" and inv is not None and safe_by_invariants
+               and budget.stop is None else False)
+    # with deadlock freedom proved and no progress asked, nothing is left to explore for
+    full, comp, reduced = (_searches(net, nb, opts, safe_mask, budget, notes,
+                                     inv.token_flows()[0] if inv is not None else [])
+                           if opts.check_progress or not no_dead else (None, None, None))
     deciding = reduced if reduced is not None else full
-    if deciding is None:          # compositional only
+    if deciding is None:          # compositional only (or nothing: no_dead)
         deciding = SearchResult("none", 0, 0, 0, False, None, 0.0, [], 0, 0, None)
     by_comp = comp is not None and comp.complete
 
@@ -196,7 +203,7 @@ def verify(net: FlatNet, options: VerifyOptions | None = None) -> VerifyReport:
         deadlock_free, dead_count = False, 1
         notes.append("the compositional check shows a reachable deadlock; no firing sequence "
                      "leading to it was found within the limits")
-    elif deciding.complete or (comp is not None and comp.deadlock_free):
+    elif deciding.complete or (comp is not None and comp.deadlock_free) or no_dead:
         deadlock_free = True
     else:
         deadlock_free = None
@@ -217,7 +224,8 @@ def verify(net: FlatNet, options: VerifyOptions | None = None) -> VerifyReport:
         verdict = Verdict.INCONCLUSIVE
 
     method = "+".join(name for name, used in (("full", full), ("compositional", comp),
-                                              ("stubborn", reduced)) if used is not None)
+                                              ("stubborn", reduced)) if used is not None) \
+        or ("invariants" if no_dead else "")
     return VerifyReport(
         system=net.system,
         verdict=verdict,
@@ -505,11 +513,29 @@ def _invariants(net: FlatNet, opts: VerifyOptions, budget: Budget,
                            time.monotonic() - start, proof=proof)
 
 
+def _no_dead_marking(nb: NetBits, inv: InvariantResult, budget: Budget,
+                     notes: list[str]) -> bool:
+    """Deadlock freedom from the place invariants (deadmarking.py): no marking that marks
+    one place of each one-token semiflow, and none of the semiflows without a token, is
+    dead and not final."""
+    flows, empty = inv.token_flows()
+    with budget.running("the dead markings the invariants allow"):
+        try:
+            found = dead_markings(nb, flows, empty, budget)
+        except LimitReached:
+            return False
+    if found.proved:
+        notes.append(f"deadlock freedom proved from the place invariants: no marking they "
+                     f"allow is dead ({found.nodes:,} branchings)")
+    return found.proved
+
+
 def _searches(net: FlatNet, nb: NetBits, opts: VerifyOptions, safe_mask: int,
-              budget: Budget, notes: list[str],
+              budget: Budget, notes: list[str], flows: Sequence[int] = (),
               ) -> tuple[SearchResult | None, ComposeResult | None, SearchResult | None]:
     """Step 2: the explorations ``options.reduction`` asks for (full, compositional,
-    stubborn sets), each started only when the ones before left the question open."""
+    stubborn sets), each started only when the ones before left the question open. ``flows``:
+    the one-token semiflows (the stubborn sets' necessary enabling sets)."""
     full: SearchResult | None = None
     reduced: SearchResult | None = None
     comp: ComposeResult | None = None
@@ -538,7 +564,7 @@ def _searches(net: FlatNet, nb: NetBits, opts: VerifyOptions, safe_mask: int,
         reduced = explore_reduced(nb, safe_mask, opts.max_states, None,
                                   opts.max_counterexamples, opts.on_progress,
                                   for_progress=opts.check_progress and comp is None,
-                                  budget=budget)
+                                  budget=budget, semiflows=flows)
         notes.append(f"stubborn-set exploration: {reduced.states} states")
         if reduced.stopped and reduced.unsafe is None:
             notes += _stopped_note("stubborn-set exploration", reduced.stopped, budget)

@@ -196,14 +196,16 @@ def unsafe_net() -> FlatNet:
 # --- random nets ----------------------------------------------------------------------
 
 def random_product(seed: int, machines: int = 3, states: int = 4, shared: int = 2,
-                   sync: float = 0.5, raw: float = 0.0, final: bool = False) -> FlatNet:
+                   sync: float = 0.5, raw: float = 0.0, final: bool = False,
+                   read: float = 0.0) -> FlatNet:
     """State machines (one token each) synchronised on shared places.
 
     Each machine is a random strongly connected graph of local states. Shared resources are
     complementary place pairs (``r``/``r.free``): a transition may take a resource (consume
     ``r.free``, produce ``r``) or give it back; with probability ``raw`` a transition instead
-    produces a plain shared place without checking it, which may make the net unsafe. Some
-    transitions are ITERATION transitions of their machine.
+    produces a plain shared place without checking it, which may make the net unsafe; with
+    probability ``read`` it only tests one of the pair (takes it and puts it back, as a
+    tracked value is read). Some transitions are ITERATION transitions of their machine.
     """
     rng = random.Random(seed)
     b = NetBuilder(f"rnd{seed}")
@@ -228,6 +230,10 @@ def random_product(seed: int, machines: int = 3, states: int = 4, shared: int = 
                     if name not in b.index:
                         raws.append(b.place(name))
                     (post if rng.random() < 0.5 else pre).append(name)
+                elif read and rng.random() < read:
+                    tested = f"r{r}" if rng.random() < 0.5 else f"r{r}.free"
+                    pre.append(tested)
+                    post.append(tested)
                 elif rng.random() < 0.5:
                     pre.append(f"r{r}.free")
                     post.append(f"r{r}")

@@ -72,13 +72,7 @@ def test_every_spec_states_the_verdict_of_the_table() -> None:
 
 
 @pytest.mark.slow
-@pytest.mark.parametrize("name", [
-    # a minute for a known failure: a long case (tests/verify/test_fleet.py's fleets of 2
-    # and 3 robots are its fast variant, always run)
-    pytest.param(n, marks=[pytest.mark.long,
-                           pytest.mark.xfail(strict=True, reason="issue 31: the fleet of seven "
-                                             "robots is not decided within the limit yet")])
-    if n == "fleet" else n for n in sorted(TABLE)])
+@pytest.mark.parametrize("name", sorted(TABLE))
 def test_verify_gives_the_authors_verdict(name: str, tmp_path: Path) -> None:
     verdict, deadlock_free, lost, props = TABLE[name]
     code, report, saved = _verify(name, tmp_path)
