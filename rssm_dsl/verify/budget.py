@@ -190,6 +190,12 @@ class Budget:
     def remaining(self) -> float | None:
         return None if self.deadline is None else max(0.0, self.deadline - time.monotonic())
 
+    def run_remaining(self) -> float | None:
+        """The run's own time left, whatever cap holds now (a share of it taken inside a
+        capped first try is cut by the try's cap, which the try's caller then sees hit)."""
+        return (None if self.time_limit is None
+                else max(0.0, self.time_limit - (time.monotonic() - self.start)))
+
     # ------------------------------------------------------------------ checks
     def check(self, states: int | None = None, extra: int = 0) -> None:
         """Raise ``LimitReached`` when a limit is reached, now or before. ``states``: the

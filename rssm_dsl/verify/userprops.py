@@ -128,7 +128,9 @@ def _check_batch(net: FlatNet, batch: list[tuple[Property, list[Formula]]],
                 found[prop.name] = dataclasses.replace(found[prop.name], counterexample=cx)
                 again.remove((prop, formulas))
     if again:
-        left = budget.remaining()
+        # a share of the run's time: inside a capped first try (the falsifier's) the try's
+        # cap cuts it, and the caller, seeing its cap hit, tries again with the rest
+        left = budget.run_remaining()
         cap = min(WHOLE_SECONDS, left / 3) if left is not None else WHOLE_SECONDS
         with budget.capped(cap):
             whole = _explore(net, tuple(net.subsystems), [f for _, fs in again for f in fs],

@@ -97,3 +97,26 @@ def test_planted_bug_robot_ends_after_its_first_job() -> None:
     # the end of r2 is on the way: its switch to `end` after acknowledging
     assert any(s.subsystem == "r2.c" and "end" in s.name for s in cx.steps) or any(
         "r2.c" in label for label in cx.marking)
+
+
+def test_seven_robots_are_verified_from_the_place_invariants() -> None:
+    """No marking the one-token semiflows allow is dead (deadmarking.py: a robot waits only
+    while its acknowledgement's channel is full, the coordinator only while it is empty), so
+    the fleet is deadlock-free without a state explored, and progress follows from deadlock
+    freedom (one group that stalls together)."""
+    r = _verify("fleet7")
+    assert r.verdict is Verdict.VERIFIED, (r.why_undecided, r.notes)
+    assert r.safe and r.deadlock_free and r.progress_ok
+    assert r.method == "invariants" and r.states == 0
+    assert any("deadlock freedom proved from the place invariants" in n for n in r.notes)
+    assert any("progress follows from deadlock freedom" in n for n in r.notes)
+
+
+def test_reduction_off_explores_instead() -> None:
+    """`--reduction off` is the plain full exploration: it never takes the invariants'
+    word for deadlock freedom (the soundness harness compares it with auto)."""
+    comp = _compiled("fleet2")
+    assert comp.hpn is not None
+    r = verify(flatten(comp.hpn), VerifyOptions(reduction="off", check_progress=False))
+    assert r.method == "full"
+    assert not any("place invariants: no marking" in n for n in r.notes)

@@ -255,3 +255,27 @@ def test_reduced_keeps_the_atoms_random(seed: int) -> None:
 def test_reduced_keeps_the_atoms_hypothesis(seed: int, machines: int, states: int,
                                             shared: int, sync: float) -> None:
     _check_random(seed, machines, states, shared, sync)
+
+
+def test_a_capped_try_that_cuts_the_whole_net_recheck_says_its_cap_was_hit() -> None:
+    """device_reading's property is violated on the slice of a.c, whose environment (the
+    receptor) may send any value: it is checked again on the whole net, for a share of the
+    run's time. Inside a short capped first try (the falsifier's first second), that share
+    is cut by the try's cap, and the try's caller must see its cap hit (and try again with
+    the rest of the run's time); a share of the try's own time, cut by itself, left the
+    property undecided with the caller's cap not hit, and `rssmc verify` ended INCONCLUSIVE
+    on a loaded machine."""
+    from rssm_dsl.verify.budget import Budget
+    from rssm_dsl.verify.userprops import check_properties
+
+    path = Path(__file__).resolve().parents[1] / "interp" / "specs" / "device_reading.rssm"
+    comp = compile_file(path)
+    assert comp.hpn is not None and comp.system is not None
+    net = flatten(comp.hpn)
+    plan = value_plan(comp, net)
+    budget = Budget(300.0)
+    with budget.capped(0.02) as cap:
+        [low] = check_properties(net, comp.system, plan, budget, 5_000_000)
+    assert low.holds is False or cap.hit, low.why
+    [low] = check_properties(net, comp.system, plan, budget, 5_000_000)
+    assert low.holds is False and low.counterexample is not None
