@@ -108,6 +108,8 @@ class VerifyOptions:
     #                                      gave a violation (verify_with_values)
     stall_shortcut: bool = True          # one blocking group of every subsystem that stalls
     #                                      together: progress from deadlock freedom
+    dead_markings: bool = True           # "auto": deadlock freedom from the place invariants
+    #                                      when they allow no dead marking (deadmarking.py)
 
     def __post_init__(self) -> None:
         if self.fairness not in FAIRNESS:
@@ -181,12 +183,14 @@ def verify(net: FlatNet, options: VerifyOptions | None = None) -> VerifyReport:
     safe_mask = to_mask(inv.safe_places) if inv else 0
     safe_by_invariants = inv is not None and inv.proves_safe(nb.nplaces)
     no_dead = (_no_dead_marking(nb, inv, budget, notes)
-               if opts.reduction == "auto" and inv is not None and safe_by_invariants
-               and budget.stop is None else False)
-    # with deadlock freedom proved and no progress asked, nothing is left to explore for
+               if opts.reduction == "auto" and opts.dead_markings and inv is not None
+               and safe_by_invariants and budget.stop is None else False)
+    # with deadlock freedom proved and no progress asked, only a quick full exploration
+    # (the dead transitions and unreachable behaviours of a small net)
     full, comp, reduced = (_searches(net, nb, opts, safe_mask, budget, notes,
                                      inv.token_flows()[0] if inv is not None else [])
-                           if opts.check_progress or not no_dead else (None, None, None))
+                           if opts.check_progress or not no_dead
+                           else (_quick_full(nb, opts, budget), None, None))
     deciding = reduced if reduced is not None else full
     if deciding is None:          # compositional only (or nothing: no_dead)
         deciding = SearchResult("none", 0, 0, 0, False, None, 0.0, [], 0, 0, None)
@@ -511,6 +515,16 @@ def _invariants(net: FlatNet, opts: VerifyOptions, budget: Budget,
                  f"prove {len(proof) - len(inv.proof)} more place(s) safe")
     return InvariantResult((*inv.invariants, *extra), inv.complete, inv.message,
                            time.monotonic() - start, proof=proof)
+
+
+def _quick_full(nb: NetBits, opts: VerifyOptions, budget: Budget) -> SearchResult | None:
+    """The full exploration within the share of a first try (``slice_after_seconds``,
+    ``slice_after_states``); None when it does not finish there."""
+    with budget.capped(opts.slice_after_seconds) as cap:
+        full = explore_full(nb, min(opts.max_states, opts.slice_after_states),
+                            keep_graph=False, max_counterexamples=opts.max_counterexamples,
+                            progress=opts.on_progress, budget=budget)
+    return full if full.complete and not cap.hit else None
 
 
 def _no_dead_marking(nb: NetBits, inv: InvariantResult, budget: Budget,
