@@ -24,8 +24,9 @@ The property files follow the contest's property language (XML, namespace
   truth table, evaluated by the code the verifier and the interpreter run
   (:class:`rssm_dsl.semantics.properties.Formula`), so it means what P means.
 - ``CTLCardinality.xml``: each `whenever P eventually Q` over behaviours, as ``AG (not P' or
-  EF Q')``: the verifier's reading (a reachable state where P holds from which no
-  continuation reaches Q is a violation).
+  not E (not Q' U not EF Q'))``: the verifier's reading (a reachable state where P holds,
+  from which a path that never meets Q leads to a state that can never reach Q again, is a
+  violation).
 - ``README.txt``: what each file holds, and the properties not written, with the reason. A
   property that reads a value (``SUB.NAME``) is not expressible: the values the verifier
   tracks beside the net (new(x), finite values) are not places of the PNML, where every
@@ -39,6 +40,7 @@ deadlock or a violation found on it may be one the data rules out (`rssmc verify
 
 from __future__ import annotations
 
+import copy
 import itertools
 import xml.etree.ElementTree as ET
 from collections.abc import Sequence
@@ -153,10 +155,16 @@ def property_formula(net: FlatNet, system: System, prop: Property) -> ET.Element
         exprs.append(_dnf(prime_cubes(rows, len(atoms)), places))
     if prop.kind == "always":
         return _quantified("all-paths", "globally", exprs[0])
-    # whenever P eventually Q: AG (not P or EF Q)
+    # whenever P eventually Q: AG (not P or not E (not Q U not EF Q)), the verifier's
+    # reading: no P-state from which a path that never meets Q leads to a state that can
+    # never reach Q again
+    p_expr, q_expr = exprs
+    lost = _node("negation", _quantified("exists-path", "finally", q_expr))
+    until = _node("until", _node("before", _node("negation", copy.deepcopy(q_expr))),
+                  _node("reach", lost))
     return _quantified("all-paths", "globally", _node(
-        "disjunction", _node("negation", exprs[0]),
-        _quantified("exists-path", "finally", exprs[1])))
+        "disjunction", _node("negation", p_expr),
+        _node("negation", _node("exists-path", until))))
 
 
 def _in(active: frozenset[tuple[str, str]], subsystem: str, behaviour: str) -> bool:
@@ -280,7 +288,7 @@ def _readme(model: str, net: FlatNet, always: list[tuple[Property, ET.Element]],
                   for i, (p, _) in enumerate(always)]
     if response:
         lines.append("CTLCardinality.xml: the `whenever P eventually Q` properties, as "
-                     "AG (not P or EF Q):")
+                     "AG (not P or not E (not Q U not EF Q)):")
         lines += [f"  {model}-CTLCardinality-{i:02d}: {p.name}"
                   for i, (p, _) in enumerate(response)]
     if skipped:

@@ -251,7 +251,8 @@ class Property:
 
     ``kind`` "always": ``condition`` holds in every reachable state (a state invariant);
     "response" (`whenever trigger eventually goal`): every reachable state where ``trigger``
-    holds is followed, now or later, by one where ``goal`` holds. The expressions are as
+    holds is followed, now or later, by one where ``goal`` holds, on every run but those that
+    keep a way to ``goal`` open for ever (docs/verify.md). The expressions are as
     written; rssm_dsl.semantics.properties resolves their atoms (``atoms``) and evaluates
     them (``Formula``, ``evaluate``)."""
 

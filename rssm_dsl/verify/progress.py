@@ -219,8 +219,9 @@ def forward_closure(graph: Graph, start: int, budget: Budget | None = None) -> B
 
 
 def shortest_path(graph: Graph, start: int, goal: Bools, allow_empty: bool = True,
-                  ) -> tuple[tuple[int, ...], int]:
-    """A shortest firing sequence from ``start`` to a state in ``goal``, and that state.
+                  within: Bools | None = None) -> tuple[tuple[int, ...], int]:
+    """A shortest firing sequence from ``start`` to a state in ``goal``, and that state; with
+    ``within``, through states of it only (the goal state itself may lie outside).
 
     With ``allow_empty=False`` the path has at least one step (a cycle when ``goal`` is start).
     """
@@ -245,6 +246,8 @@ def shortest_path(graph: Graph, start: int, goal: Bools, allow_empty: bool = Tru
             return tuple(reversed(steps)), int(graph.dst[e])
         dst = graph.dst[edges]
         fresh = ~seen[dst]
+        if within is not None:
+            fresh &= within[dst]
         edges, dst = edges[fresh], dst[fresh]
         if dst.size == 0:
             break

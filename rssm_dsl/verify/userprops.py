@@ -66,7 +66,15 @@ from rssm_dsl.verify.dataplan import ValuePlan
 from rssm_dsl.verify.netbits import NetBits
 from rssm_dsl.verify.progress import backward_closure, shortest_path, terminal_component
 from rssm_dsl.verify.report import Counterexample, PropertyResult, marking_labels
-from rssm_dsl.verify.slicing import ReplayError, Slice, blocking_groups, replay_group, slice_net
+from rssm_dsl.verify.slicing import (
+    ReplayError,
+    Slice,
+    blocking_groups,
+    fire_steps,
+    replay_group,
+    run_outside,
+    slice_net,
+)
 from rssm_dsl.verify.statespace import Graph, SearchResult, explore_full
 from rssm_dsl.verify.stubborn import explore_reduced
 from rssm_dsl.verify.valuenet import track_values
@@ -225,10 +233,17 @@ def _judge(net: FlatNet, prop: Property, formulas: list[Formula], ex: _Explored,
         bad = ~truth[0][0]
         unknown = truth[0][1]
     else:
+        # whenever P eventually Q is violated by a reachable P-state from which a path that
+        # never meets Q leads to a state that can never reach Q again (a deadlock, the end
+        # of the system, a part of the state space it never leaves): every run on from there
+        # misses Q. Unknown values count for Q where that makes no violation.
         (p, pu), (q, qu) = truth
-        reach_q = backward_closure(graph, q & ~qu, budget=budget)
-        bad = p & ~pu & ~reach_q & ~qu
-        unknown = (pu | qu) & ~reach_q
+        never = ~backward_closure(graph, q | qu, budget=budget)
+        bad_from = backward_closure(graph, never, ~q & ~qu, budget)
+        hopeless = ~backward_closure(graph, q & ~qu, budget=budget)
+        may_from = backward_closure(graph, hopeless, ~q & ~qu | qu, budget)
+        bad = p & ~pu & bad_from
+        unknown = (p | pu) & may_from & ~bad
     bad &= ~unknown
     states = f"{graph.size:,} states of {where}; {ex.how}"
     if bad.any():
@@ -239,10 +254,13 @@ def _judge(net: FlatNet, prop: Property, formulas: list[Formula], ex: _Explored,
         state = int(np.flatnonzero(settled if settled.any() else bad)[0])
         to_cycle: tuple[int, ...] = ()
         cycle: tuple[int, ...] = ()
+        reach = 0                       # steps of to_cycle to the state Q is lost for good
         if prop.kind != "always":       # the lasso: on, Q never again
-            to_cycle, cycle = _lasso(graph, state, budget)
+            to_never, x = shortest_path(graph, state, never, within=~q & ~qu)
+            rest, cycle = _lasso(graph, x, budget)
+            to_cycle, reach = (*to_never, *rest), len(to_never)
         try:
-            cx = _lift(net, ex.slice, tracked, graph.path(state), to_cycle, cycle, prop)
+            cx = _lift(net, ex.slice, tracked, graph.path(state), to_cycle, cycle, prop, reach)
         except ReplayError as e:
             return PropertyResult(prop.name, prop.kind, _text(prop), None, None,
                                   f"not decided: a violation found in {where} was not "
@@ -330,9 +348,14 @@ def _text(prop: Property) -> str:
 
 
 def _lift(net: FlatNet, sl: Slice | None, tracked: TrackedNet, prefix: Sequence[int],
-          to_cycle: Sequence[int], cycle: Sequence[int], prop: Property) -> Counterexample:
+          to_cycle: Sequence[int], cycle: Sequence[int], prop: Property,
+          reach: int = 0) -> Counterexample:
     """The counterexample in the whole net's words: the prefix (and for a response
-    property the path on to the cycle, and the cycle) replayed there."""
+    property the path on to the cycle, and the cycle) replayed there. A slice's path on
+    that needs the rest of the system (the system's end, which waits for every agent) is
+    replayed up to the state from which Q is lost for good (its first ``reach`` steps),
+    and the whole net runs on from there, everyone in turn (``slicing.run_outside``): the
+    slice's subsystems can do nothing there that reaches Q."""
     tn = tracked.net.transitions
 
     def told(ts: Sequence[int]) -> tuple[FlatTransition, ...]:
@@ -351,7 +374,17 @@ def _lift(net: FlatNet, sl: Slice | None, tracked: TrackedNet, prefix: Sequence[
     if not more and not loop:
         return Counterexample("property", tuple(net.transitions[t] for t in fired), reached,
                               subsystem=prop.name)
-    on, m2 = replay_group(sl, sl.whole_steps(more), m)
+    try:
+        on, m2 = replay_group(sl, sl.whole_steps(more), m)
+    except ReplayError:             # the path on needs the rest of the system
+        on, m2 = replay_group(sl, sl.whole_steps(more[:reach]), m)
+        tail, around, _ = run_outside(net, m2, frozenset())
+        m2 = fire_steps(net, m2, tail)
+        return Counterexample("property", tuple(net.transitions[t] for t in fired), reached,
+                              subsystem=prop.name,
+                              to_cycle=tuple(net.transitions[t] for t in (*on, *tail)),
+                              cycle=tuple(net.transitions[t] for t in around),
+                              cycle_marking=marking_labels(net, m2) if around else ())
     try:
         around, _ = replay_group(sl, sl.whole_steps(loop), m2)
     except ReplayError:             # the cycle needs the rest of the system: the path only

@@ -20,18 +20,21 @@ def test_concurrent_run_fires_only_enabled_transitions(tmp_path: Path) -> None:
     assert comp.hpn is not None
     nb = NetBits.of(flatten(comp.hpn))
     rt = runtime(comp, RunConfig(base_dir=tmp_path, wall_clock=True))
+    # (the stall watch off: on a loaded machine a second of wall clock may see no iteration)
     sim = Simulator(rt, SimOptions(mode="concurrent", until=1.0, record_markings=True,
-                                   workers=3))
+                                   workers=3, stall_periods=0))
     result = sim.run()
     assert result.reason == "until", result.message
     ms = [to_mask(m) for m in sim.markings]
+    assert len(ms) >= 2, "nothing fired"
     for a, b in itertools.pairwise(ms):
         t = next((t for t in range(nb.ntrans) if a & nb.pre[t] == nb.pre[t]
                   and nb.fire(a, t) == b), None)
         assert t is not None, "a step that is not a firing of the net"
     c = rt.subsystems["a1.c"]
-    # paced at 30 Hz for 1 s of wall clock: never ahead of the clock; a loaded machine lags
-    assert 1 <= c.i <= 31
+    # paced at 30 Hz for 1 s of wall clock: never ahead of the clock (a loaded machine lags,
+    # perhaps to no iteration at all)
+    assert c.i <= 31
 
 
 def test_operations_run_in_worker_threads(tmp_path: Path) -> None:

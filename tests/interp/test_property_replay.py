@@ -205,3 +205,25 @@ def test_a_malformed_values_entry_is_a_usage_error(tmp_path: Path) -> None:
     r = rssmc("simulate", DEVICE_READING, "--replay", path)
     assert r.returncode == 2, r.stderr
     assert "\"values\", entry 1" in r.stderr and "Traceback" not in r.stderr
+
+
+COIN = ROOT / "tests" / "verify" / "specs" / "coin_toss.rssm"
+
+
+def test_a_response_lost_by_one_choice_is_violated_and_replays(tmp_path: Path) -> None:
+    """coin_toss: `whenever a.c in start eventually a.c in home` is violated by the run that
+    reads tails once and ends, though from `start` a way home exists; the lasso's path on
+    goes through states without Q to the system where `home` can never come again, and the
+    replay sees P at the end of the path and Q nowhere after. `tossed` (start is always
+    followed by toss) holds."""
+    path = tmp_path / "report.json"
+    r = rssmc("verify", COIN, "--format", "json")
+    assert r.returncode == 1, r.stderr
+    path.write_text(r.stdout, encoding="utf-8")
+    report = json.loads(r.stdout)
+    holds = {p["name"]: p["holds"] for p in report["user_properties"]}
+    assert holds == {"returns": False, "tossed": True}
+    cx = violated(report)["counterexample"]
+    assert any("end" in s["label"] for s in cx["to_cycle"])      # a.c ends on the way
+    code, out = replay(COIN, path)
+    assert code == 1 and out["replay"]["reproduced"] is True, out["replay"]
