@@ -279,3 +279,19 @@ def test_a_capped_try_that_cuts_the_whole_net_recheck_says_its_cap_was_hit() -> 
     assert low.holds is False or cap.hit, low.why
     [low] = check_properties(net, comp.system, plan, budget, 5_000_000)
     assert low.holds is False and low.counterexample is not None
+
+
+@pytest.mark.parametrize("reduction", ["auto", "off", "on"])
+def test_a_response_holding_on_a_slice_fed_from_outside_is_checked_on_the_whole_net(
+        reduction: str) -> None:
+    """response_fed_slice: a.c leaves `wait` only on go = true, which b.c never sends. On the
+    slice of a.c the environment may send true, so `done` stays within reach and the
+    property held there; the whole net, with the values b.c sends tracked, violates it."""
+    comp = compile_file(SPECS / "response_fed_slice.rssm")
+    assert comp.hpn is not None
+    net = flatten(comp.hpn)
+    r = verify(net, VerifyOptions(values=value_plan(comp, net), reduction=reduction))
+    [leaves] = r.user_properties
+    assert leaves.holds is False, leaves.why
+    assert "whole net" in leaves.why and r.verdict is Verdict.VIOLATED
+    assert r.deadlock_free and r.progress_ok
