@@ -209,17 +209,7 @@ class StateSpace:
 
     def ef(self, target: set[int]) -> set[int]:
         """The states from which some path reaches ``target``."""
-        pred: list[list[int]] = [[] for _ in self.states]
-        for s, out in enumerate(self.succ):
-            for t in out:
-                pred[t].append(s)
-        seen, todo = set(target), list(target)
-        while todo:
-            for p in pred[todo.pop()]:
-                if p not in seen:
-                    seen.add(p)
-                    todo.append(p)
-        return seen
+        return self.eu(set(range(len(self.states))), target)
 
     def eu(self, before: set[int], reach: set[int]) -> set[int]:
         """E (before U reach): a path through ``before`` states to a ``reach`` state."""
