@@ -56,7 +56,7 @@ from typing import Any
 import numpy as np
 
 from rssm_core.records import dataclass
-from rssm_dsl.hpn.flat import FlatNet, FlatTransition
+from rssm_dsl.hpn.flat import FlatNet, FlatTransition, Role
 from rssm_dsl.semantics.model import Property, System
 from rssm_dsl.semantics.properties import Formula, InBehaviour, UnknownValue, Value
 from rssm_dsl.verify.budget import Budget, LimitReached
@@ -64,7 +64,12 @@ from rssm_dsl.verify.cover import one_token_semiflows
 from rssm_dsl.verify.datanet import TrackedNet, track_new
 from rssm_dsl.verify.dataplan import ValuePlan
 from rssm_dsl.verify.netbits import NetBits
-from rssm_dsl.verify.progress import backward_closure, shortest_path, terminal_component
+from rssm_dsl.verify.progress import (
+    backward_closure,
+    live_places,
+    shortest_path,
+    terminal_component,
+)
 from rssm_dsl.verify.report import Counterexample, PropertyResult, marking_labels
 from rssm_dsl.verify.slicing import (
     ReplayError,
@@ -167,15 +172,29 @@ def _check_batch(net: FlatNet, batch: list[tuple[Property, list[Formula]]],
 def _fed_values(net: FlatNet, sl: Slice, plan: ValuePlan,
                 batch: list[tuple[Property, list[Formula]]]) -> bool:
     """Does a channel from outside ``sl`` into it carry a value the whole net tracks (for
-    these properties)? The slice's environment writes any value there, the whole net only
-    what its producer computes."""
+    these properties), or come from a producer that can end? The slice's environment writes
+    any value there, at any time, the whole net only what its producer computes, while it
+    runs."""
     inbound = [c for c in channels(net) if c.consumer in sl.keep and c.producer not in sl.keep]
     if not inbound:
         return False
+    # a producer that can end stops writing for good, which the environment never does: the
+    # slice may then keep a way to Q (fresh data) that the whole net has lost
+    if any(c.producer is not None and _may_end(net, c.producer) for c in inbound):
+        return True
     keys = frozenset(f"{a.subsystem_id}.{a.variable_name}" for _, fs in batch for f in fs
                      for a in f.atoms if isinstance(a, Value))
     tracked = set(track_values(track_new(net), plan, keys).values)
     return any(f"channel {c.name}" in tracked for c in inbound)
+
+
+def _may_end(net: FlatNet, subsystem: str) -> bool:
+    """Can ``subsystem`` switch to where no iteration of it follows (its end)?"""
+    live = live_places(net, subsystem)
+    return any(t.subsystem == subsystem and t.role is Role.SWITCH
+               and any(net.places[p].subsystem == subsystem and not live >> p & 1
+                       for p in t.post)
+               for t in net.transitions)
 
 
 WHOLE_SECONDS = 30.0     # at most, of the run's time: a slice's violation checked in the whole net
