@@ -39,6 +39,7 @@ from typing import TYPE_CHECKING, Any
 from rssm_core.firing import Net, NotEnabled
 from rssm_core.records import dataclass
 from rssm_core.trace import TraceFormatError, parse_trace
+from rssm_core.values import short
 from rssm_dsl.diagnostics import Diagnostic
 from rssm_dsl.hpn.flat import FlatNet, Role
 from rssm_dsl.interp.scheduler import RunResult, Simulator
@@ -343,8 +344,8 @@ class ValueChoices:
         where = st.stage if var in st.stage else st.vars
         old = where.get(var)
         if type(old) is not type(value) or old != value:
-            self.set.append(f"{sub}.{var} = {_show(value)} (chosen at step {step}; the run "
-                            f"had {_show(old)})")
+            self.set.append(f"{sub}.{var} = {short(value)} (chosen at step {step}; the run "
+                            f"had {short(old)})")
         where[var] = value
 
     def note(self) -> str:
@@ -353,10 +354,6 @@ class ValueChoices:
             return ""
         return ("; values the data does not decide, set as the verifier chose them: "
                 + ", ".join(self.set))
-
-
-def _show(v: Any) -> str:
-    return str(v).lower() if isinstance(v, bool) else str(v)
 
 
 def chain(*hooks: Callable[[int], None] | None) -> Callable[[int], None] | None:

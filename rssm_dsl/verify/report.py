@@ -22,6 +22,7 @@ from enum import Enum
 from typing import Any
 
 from rssm_core.records import dataclass
+from rssm_core.values import short
 from rssm_dsl.hpn.flat import FlatNet, FlatTransition
 from rssm_dsl.source import Span
 from rssm_dsl.verify.budget import INTERRUPT, Stop, format_seconds, format_size
@@ -155,7 +156,7 @@ class Counterexample:
         if self.values:
             out.append("    values the data does not decide (read from a device or computed "
                        "from untracked data), as chosen on this path:")
-            out += [f"        step {i + 1}: {sub}.{var} = {show_value(v)}"
+            out += [f"        step {i + 1}: {sub}.{var} = {short(v)}"
                     for i, sub, var, v in self.values]
         return out
 
@@ -188,11 +189,6 @@ class Counterexample:
 def _transition_json(t: FlatTransition) -> dict[str, Any]:
     return {"name": t.name, "label": t.label, "file": t.span.file, "line": t.span.line,
             "column": t.span.column, "role": t.role.value}
-
-
-def show_value(v: Any) -> str:
-    """A finite value as the spec writes it (``true``, ``3``, ``grasp``)."""
-    return str(v).lower() if isinstance(v, bool) else str(v)
 
 
 @dataclass(frozen=True)

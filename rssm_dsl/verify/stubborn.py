@@ -221,8 +221,11 @@ class StubbornExplorer:
         """Necessary enabling sets of the unmarked place ``p`` besides its producers: for
         each one-token semiflow holding ``p``, the transitions that empty the place of it
         marked in ``m`` (the token must leave that place before ``p`` can be marked)."""
+        flows = self.flows_of[p]
+        if not flows:
+            return []
         out = []
-        for flow in self.flows_of[p]:
+        for flow in flows:
             here = m & flow
             if here and here & (here - 1) == 0:
                 out.append(self.leave[here.bit_length() - 1])
