@@ -202,6 +202,29 @@ MUTANTS = (
            "rssm_dsl/verify/stubborn.py",
            "        up = self.up_set(m) if self.watched else 0\n",
            "        up = 0\n"),
+    # where a property is checked (verify/slicing.py wait_closure); killed by
+    # tests/verify/test_userprops.py (run: --only slice)
+    Mutant("slice-no-blocking-receive",
+           "a property's slice lacks the producers its subsystems receive from blocking",
+           "rssm_dsl/verify/slicing.py",
+           "            if c.consumer == s and (c.consumer_waits or feeds(c)):\n",
+           "            if c.consumer == s and feeds(c):\n"),
+    Mutant("slice-no-blocking-send",
+           "a property's slice lacks the consumers its subsystems send to blocking",
+           "rssm_dsl/verify/slicing.py",
+           "            elif c.producer == s and c.producer_waits:\n",
+           "            elif c.producer == s and False:\n"),
+    Mutant("slice-no-fed-values",
+           "a property's slice lacks the producers of the values it tracks (the environment "
+           "writes any value there)",
+           "rssm_dsl/verify/userprops.py",
+           "        if f\"channel {c.name}\" in tracked:\n            return True\n",
+           "        if False:\n            return True\n"),
+    Mutant("slice-quiet-waiting-end",
+           "a channel the slice's end waits on is dropped as quiet",
+           "rssm_dsl/verify/slicing.py",
+           "        return not c.consumer_waits\n",
+           "        return True\n"),
 )
 
 _IGNORE = shutil.ignore_patterns(".git", ".venv", ".cache", "__pycache__", "out", "node_modules",

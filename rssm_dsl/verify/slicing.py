@@ -36,7 +36,7 @@ Hence, for the group's places and for what it can reach:
 from __future__ import annotations
 
 import dataclasses
-from collections.abc import Callable, Sequence
+from collections.abc import Callable, Collection, Sequence
 
 from rssm_core.records import dataclass
 from rssm_dsl.hpn.flat import FlatNet, FlatPlace, FlatTransition, NewSites, Role
@@ -49,7 +49,9 @@ class Channel:
     empty: int
     producer: str | None
     consumer: str | None
-    free: bool
+    free: bool                       # neither end waits on it
+    producer_waits: bool = False     # the producer's end can wait (a blocking send)
+    consumer_waits: bool = False     # the consumer's end can wait (a blocking receive)
 
 
 def channels(net: FlatNet) -> list[Channel]:
@@ -81,9 +83,10 @@ def channels(net: FlatNet) -> list[Channel]:
         full = filled.pop()
         empty = ps[0] if ps[1] == full else ps[1]
         producer, consumer = senders.pop(), receivers.pop()
-        free = all(_never_waits(by_sub.get(s, []), pres.get(s, set()), full, empty)
-                   for s in (producer, consumer))
-        out.append(Channel(name, full, empty, producer, consumer, free))
+        sends, takes = (not _never_waits(by_sub.get(s, []), pres.get(s, set()), full, empty)
+                        for s in (producer, consumer))
+        out.append(Channel(name, full, empty, producer, consumer, not (sends or takes),
+                           sends, takes))
     if len(_CHANNELS) > 64:
         _CHANNELS.clear()
     _CHANNELS[id(net)] = (net, out)
@@ -130,6 +133,32 @@ def blocking_groups(net: FlatNet) -> list[tuple[str, ...]]:
     return sorted((tuple(g) for g in groups.values()), key=lambda g: (-len(g), g))
 
 
+def wait_closure(net: FlatNet, subsystems: Collection[str],
+                 feeds: Callable[[Channel], bool] = lambda _c: False) -> tuple[str, ...]:
+    """The smallest set of subsystems holding ``subsystems`` in which no subsystem waits on
+    one outside it: with each subsystem, the other end of every channel on which its own end
+    can wait (the producer it receives from blocking, the consumer it sends to blocking),
+    and the producer of every channel into the set for which ``feeds`` is true. Those
+    outside may wait on the set (a blocking receive of a non-blocking send); the slice of
+    the set (:func:`slice_net`) has then all the set can do, and its own moves replay in the
+    whole net with the rest standing still (:func:`replay_group`), as a group's do."""
+    every = channels(net)
+    keep = set(subsystems)
+    todo = list(keep)
+    while todo:
+        s = todo.pop()
+        for c in every:
+            other = None
+            if c.consumer == s and (c.consumer_waits or feeds(c)):
+                other = c.producer
+            elif c.producer == s and c.producer_waits:
+                other = c.consumer
+            if other is not None and other not in keep:
+                keep.add(other)
+                todo.append(other)
+    return tuple(s for s in net.subsystems if s in keep) or tuple(sorted(keep))
+
+
 @dataclass(frozen=True)
 class Slice:
     """The slice of ``whole`` for the group ``keep``: ``net``, and per transition of ``net``
@@ -149,12 +178,22 @@ class Slice:
         return [self.transition_of[t.index] for t in steps if self.transition_of[t.index] >= 0]
 
 
-def slice_net(net: FlatNet, keep: Sequence[str], cut: bool = True) -> Slice:
+def slice_net(net: FlatNet, keep: Sequence[str], cut: bool = True,
+              quiet: Collection[str] = ()) -> Slice:
     """The slice of ``net`` for the group ``keep`` (the module docstring); with ``cut``
     false, the free channels inside the group are kept whole (both ends and the value they
-    carry as in the whole net) instead of cut, each end with its own environment."""
+    carry as in the whole net) instead of cut, each end with its own environment.
+
+    ``quiet`` names channels across the border on which the group's end never waits and
+    whose value nothing explored reads: the slice drops their two places and their
+    environment. With the environment free to fill or empty them at any time, they only
+    select between data cases that end in the same place (and new(x) of such an input is a
+    free choice anyway), so the group can do what it could with them, and no more than a
+    stuttering of it; each place dropped halves the slice's markings."""
     group = frozenset(keep)
+    quiet_chans = [c for c in channels(net) if c.name in quiet and _quiet(c, group)]
     gone = {p.index for p in net.places if p.subsystem is not None and p.subsystem not in group}
+    gone.update(p for c in quiet_chans for p in (c.full, c.empty))
     kept_t: list[tuple[FlatTransition, tuple[int, ...], tuple[int, ...]]] = []
     for t in net.transitions:
         if t.subsystem is not None and t.subsystem not in group:
@@ -166,7 +205,9 @@ def slice_net(net: FlatNet, keep: Sequence[str], cut: bool = True) -> Slice:
         kept_t.append((t, pre, post))
     kept_t = _prune(kept_t, net.final, net.places)
     every = channels(net)
-    border = [c for c in every if (c.producer in group) != (c.consumer in group)]
+    silent = {c.name for c in quiet_chans}
+    border = [c for c in every if (c.producer in group) != (c.consumer in group)
+              and c.name not in silent]
     # a free channel inside the group is cut in two: the producer's end gets places of its
     # own, each end its environment (the data's freshness is all it carries, and that the
     # environment covers)
@@ -216,7 +257,7 @@ def slice_net(net: FlatNet, keep: Sequence[str], cut: bool = True) -> Slice:
     sites = net.new_sites
     # new(x) of an input the environment feeds is a free choice: the environment may have
     # written any number of times since the last use, or not at all
-    from_env = {c.name for c in (*border, *inner) if c.consumer in group}
+    from_env = {c.name for c in (*border, *inner, *quiet_chans) if c.consumer in group}
     free = {(sub, k) for t, sub, k in sites.receives
             if sub in group and net.transitions[t].channel in from_env}
     new_sites = NewSites(
@@ -237,6 +278,21 @@ def slice_net(net: FlatNet, keep: Sequence[str], cut: bool = True) -> Slice:
     return Slice(net, sliced, group, tuple(transition_of), place_of,
                  tuple(c.name for c in inner),
                  tuple(c.name for c in inside) if not cut else ())
+
+
+def _quiet(c: Channel, group: frozenset[str]) -> bool:
+    """``c`` crosses the border of ``group`` and the group's end never waits on it."""
+    if c.producer in group and c.consumer not in group:
+        return not c.producer_waits
+    if c.consumer in group and c.producer not in group:
+        return not c.consumer_waits
+    return False
+
+
+def _never_waits_in(c: Channel, group: frozenset[str]) -> bool:
+    """No end of ``c`` in ``group`` can wait on it."""
+    return not ((c.producer in group and c.producer_waits)
+                or (c.consumer in group and c.consumer_waits))
 
 
 def _prune(kept: list[tuple[FlatTransition, tuple[int, ...], tuple[int, ...]]],
@@ -466,7 +522,7 @@ def _swap(net: FlatNet, m: set[int], t: int, alt: dict[int, list[int]]) -> int |
 
 def _send_ends(net: FlatNet, group: frozenset[str], chans: list[Channel]) -> list[int]:
     """The group's last steps of non-blocking sends on free channels (``op -> out + full``)."""
-    free = {c.name: c for c in chans if c.free}
+    free = {c.name: c for c in chans if _never_waits_in(c, group)}
     return [t.index for t in net.transitions
             if t.subsystem in group and t.role is Role.SEND and t.channel in free
             and free[t.channel].full in t.post and free[t.channel].full not in t.pre
@@ -489,7 +545,7 @@ def _alternatives(net: FlatNet, group: frozenset[str], chans: list[Channel],
         if t.subsystem in group:
             by_pre.setdefault((t.subsystem, frozenset(t.pre)), []).append(t.index)
     for c in chans:
-        if not c.free:
+        if not _never_waits_in(c, group):
             continue
         for t in net.transitions:
             if t.subsystem not in group:

@@ -91,6 +91,21 @@ from rssm_dsl.verify.scc import components
 from rssm_dsl.verify.statespace import Graph, Progress, ProgressCallback, SearchResult, Trace
 
 _MAX_SEEDS = 8
+_FLOWS_PER_PLACE = 4      # semiflows tried per unmarked place for a necessary enabling set
+
+
+def _flows_of(nplaces: int, semiflows: Sequence[int]) -> list[list[int]]:
+    """Per place, the one-token semiflows holding it: any of them gives a necessary
+    enabling set, so only the few smallest are kept (a place lies in hundreds of them in a
+    large net, and each is tried in every closure)."""
+    out: list[list[int]] = [[] for _ in range(nplaces)]
+    for flow in semiflows:
+        for p in bits(flow):
+            out[p].append(flow)
+    for p, flows in enumerate(out):
+        if len(flows) > _FLOWS_PER_PLACE:
+            out[p] = sorted(set(flows), key=int.bit_count)[:_FLOWS_PER_PLACE]
+    return out
 
 
 class StubbornExplorer:
@@ -124,10 +139,7 @@ class StubbornExplorer:
                 self.watched.append((p, 1 << p, bits(nb.producers[p])))
         # one-token semiflows (place masks): a place of one is marked only after the token
         # has left the place of it marked now (``leave``), see ``scapegoat``
-        self.flows_of: list[list[int]] = [[] for _ in range(nb.nplaces)]
-        for flow in semiflows:
-            for p in bits(flow):
-                self.flows_of[p].append(flow)
+        self.flows_of = _flows_of(nb.nplaces, semiflows)
         self.leave = [0] * nb.nplaces       # per place: transitions emptying it
         for t in range(nb.ntrans):
             for p in bits(nb.consume[t]):

@@ -1,11 +1,15 @@
 """The properties stated in the spec (`property NAME: always P`, `property NAME: whenever P
 eventually Q`; docs/language.md, "Properties"), checked on the reachable states.
 
-Where: the blocking groups (slicing.py) of the subsystems a property mentions, on their slice
-(the whole net when they are all of it), with new(x) and the values the property and the
-conditions read tracked (datanet.py, valuenet.py). The slice can do all its group can do in
-the whole net, and the group's moves replay in the whole net with the rest standing still
-(the argument the progress check rests on), so a property of the group's subsystems holds in
+Where: the slice (slicing.py) of the subsystems a property mentions, what they wait on
+(``property_subsystems``: the producers they receive from blocking and the consumers they
+send to blocking, and so on) and the producers of the values it tracks (for a response
+property also those that can end); the whole net when that is all of it. new(x) and the
+values the property and the conditions read are tracked (datanet.py, valuenet.py). The
+border channels whose value nothing there reads are dropped (``slice_net(quiet=...)``).
+Nothing in the slice waits on anything outside it, so the slice can do all its subsystems
+can do in the whole net, and their moves replay in the whole net with the rest standing
+still (the argument the progress check rests on): a property of those subsystems holds in
 the whole net when it holds in the slice; a violation found in the slice is replayed in the
 whole net before it is reported. With values tracked, the slice's environment fills its free
 channels with any value, which the replay of tokens does not check: such a violation is
@@ -72,14 +76,15 @@ from rssm_dsl.verify.progress import (
 )
 from rssm_dsl.verify.report import Counterexample, PropertyResult, marking_labels
 from rssm_dsl.verify.slicing import (
+    Channel,
     ReplayError,
     Slice,
-    blocking_groups,
     channels,
     fire_steps,
     replay_group,
     run_outside,
     slice_net,
+    wait_closure,
 )
 from rssm_dsl.verify.statespace import Graph, SearchResult, explore_full
 from rssm_dsl.verify.stubborn import explore_reduced
@@ -87,17 +92,17 @@ from rssm_dsl.verify.valuenet import track_values
 
 
 def check_properties(net: FlatNet, system: System, plan: ValuePlan | None,
-                     budget: Budget, max_states: int,
-                     reduction: str = "auto") -> tuple[PropertyResult, ...]:
-    """Every property of ``system`` checked on ``net`` (the module docstring). The
-    properties on the same slice share one exploration (the engine ``reduction`` names:
-    "off" full, "on" stubborn sets, "auto" and "compositional" full then stubborn sets)."""
-    groups = blocking_groups(net)
+                     budget: Budget, max_states: int, reduction: str = "auto",
+                     sliced: bool = True) -> tuple[PropertyResult, ...]:
+    """Every property of ``system`` checked on ``net`` (the module docstring), on the
+    slice of what its subsystems wait on (``sliced``) or on the whole net. The properties
+    on the same slice share one exploration (the engine ``reduction`` names: "off" full,
+    "on" stubborn sets, "auto" and "compositional" full then stubborn sets)."""
     batches: dict[tuple[str, ...], list[tuple[Property, list[Formula]]]] = {}
     for prop in system.properties:
         formulas = [Formula(system, e) for e in prop.expressions]
-        mentioned = {a.subsystem_id for f in formulas for a in f.atoms}
-        keep = tuple(sorted({s for g in groups if mentioned & set(g) for s in g}))
+        keep = (property_subsystems(net, prop, formulas, plan) if sliced
+                else tuple(net.subsystems))
         batches.setdefault(keep, []).append((prop, formulas))
     results: dict[str, PropertyResult] = {}
     for keep, batch in batches.items():
@@ -169,6 +174,47 @@ def _check_batch(net: FlatNet, batch: list[tuple[Property, list[Formula]]],
     results.update(found)
 
 
+def property_subsystems(net: FlatNet, prop: Property, formulas: list[Formula],
+                        plan: ValuePlan | None) -> tuple[str, ...]:
+    """Where ``prop`` is checked: the subsystems it mentions, what they wait on
+    (slicing.wait_closure), and the producers feeding them a value the verifier tracks for
+    it (the slice's environment would write any value there) or, for a response property,
+    a producer that can end (the environment never stops writing)."""
+    mentioned = {a.subsystem_id for f in formulas for a in f.atoms}
+    keys = frozenset(f"{a.subsystem_id}.{a.variable_name}" for f in formulas
+                     for a in f.atoms if isinstance(a, Value))
+    tracked = _tracked(net, plan, keys)
+    ends: dict[str, bool] = {}
+
+    def feeds(c: Channel) -> bool:
+        if f"channel {c.name}" in tracked:
+            return True
+        if prop.kind != "response" or c.producer is None:
+            return False
+        if c.producer not in ends:
+            ends[c.producer] = _may_end(net, c.producer)
+        return ends[c.producer]
+
+    return wait_closure(net, mentioned, feeds)
+
+
+def _tracked(net: FlatNet, plan: ValuePlan | None, keys: frozenset[str]) -> frozenset[str]:
+    """The values (``channel NAME``, ``SUB.NAME``) tracked in ``net`` for the property
+    values ``keys`` and the conditions (valuenet.py)."""
+    if plan is None:
+        return frozenset()
+    key = (id(net), id(plan), keys)
+    hit = _TRACKED.get(key)
+    if hit is None or hit[0] is not net:
+        if len(_TRACKED) > 32:
+            _TRACKED.clear()
+        hit = _TRACKED[key] = (net, frozenset(track_values(track_new(net), plan, keys).values))
+    return hit[1]
+
+
+_TRACKED: dict[tuple[int, int, frozenset[str]], tuple[FlatNet, frozenset[str]]] = {}
+
+
 def _fed_values(net: FlatNet, sl: Slice, plan: ValuePlan,
                 batch: list[tuple[Property, list[Formula]]]) -> bool:
     """Does a channel from outside ``sl`` into it carry a value the whole net tracks (for
@@ -217,10 +263,15 @@ def _explore(net: FlatNet, keep: tuple[str, ...], formulas: list[Formula],
              plan: ValuePlan | None, budget: Budget, max_states: int,
              reduction: str = "auto") -> _Explored:
     atoms = [a for f in formulas for a in f.atoms]
-    sl = slice_net(net, keep) if set(keep) != set(net.subsystems) and keep else None
-    base = sl.net if sl is not None else net
     keys = frozenset(f"{a.subsystem_id}.{a.variable_name}" for a in atoms
                      if isinstance(a, Value))
+    sl = None
+    if set(keep) != set(net.subsystems) and keep:
+        # the border's channels whose value nothing here reads are dropped (slice_net)
+        read = _tracked(net, plan, keys)
+        sl = slice_net(net, keep, quiet=[c.name for c in channels(net)
+                                         if f"channel {c.name}" not in read])
+    base = sl.net if sl is not None else net
     tracked = track_values(track_new(base), plan, keys)
     nb = NetBits.of(tracked.net)
     where = "the whole net" if sl is None else f"the slice of {', '.join(keep)}"

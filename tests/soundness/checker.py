@@ -41,7 +41,6 @@ from collections.abc import Callable, Iterable, Mapping
 from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any
-from unittest import mock
 
 from rssm_dsl.hpn.flat import FlatNet
 from rssm_dsl.hpn.flatten import flatten
@@ -219,15 +218,13 @@ def _innermost_rssm_frame(e: BaseException) -> str:
 
 def whole_net_properties(comp: Compilation, net: FlatNet,
                          limits: Limits) -> dict[str, PropertyResult]:
-    """The spec's properties checked on the whole net: ``userprops`` with every subsystem
-    in one blocking group, so that it slices nothing."""
+    """The spec's properties checked on the whole net (``userprops`` slicing nothing)."""
     from rssm_dsl.verify import userprops
 
     assert comp.system is not None
-    whole = [tuple(sorted(net.subsystems))]
-    with mock.patch.object(userprops, "blocking_groups", lambda _net: whole):
-        results = userprops.check_properties(net, comp.system, value_plan(comp, net),
-                                             Budget(limits.seconds, None), limits.max_states)
+    results = userprops.check_properties(net, comp.system, value_plan(comp, net),
+                                         Budget(limits.seconds, None), limits.max_states,
+                                         sliced=False)
     return {r.name: r for r in results}
 
 

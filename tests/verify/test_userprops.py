@@ -285,8 +285,9 @@ def test_a_capped_try_that_cuts_the_whole_net_recheck_says_its_cap_was_hit() -> 
 def test_a_response_holding_on_a_slice_fed_from_outside_is_checked_on_the_whole_net(
         reduction: str) -> None:
     """response_fed_slice: a.c leaves `wait` only on go = true, which b.c never sends. On the
-    slice of a.c the environment may send true, so `done` stays within reach and the
-    property held there; the whole net, with the values b.c sends tracked, violates it."""
+    slice of a.c alone the environment may send true, so `done` stayed within reach and the
+    property held there; the property is now checked where b.c is (the value it sends is
+    tracked: the test below), here the whole net, which violates it."""
     comp = compile_file(SPECS / "response_fed_slice.rssm")
     assert comp.hpn is not None
     net = flatten(comp.hpn)
@@ -295,3 +296,73 @@ def test_a_response_holding_on_a_slice_fed_from_outside_is_checked_on_the_whole_
     assert leaves.holds is False, leaves.why
     assert "whole net" in leaves.why and r.verdict is Verdict.VIOLATED
     assert r.deadlock_free and r.progress_ok
+
+
+def test_a_property_is_checked_on_what_its_subsystems_wait_on() -> None:
+    """hub_stops: r1.c waits on hub.c (a blocking receive) and log.c (a blocking send),
+    hub.c on k.c, k.c on hub.c; r2.c waits on hub.c too, but nothing r1's properties
+    mention waits on r2.c, so r1's are checked on the slice of k.c, hub.c, r1.c and log.c.
+    Once k.c ends, hub.c waits for ever and stops sending: both response properties are
+    violated, which a slice without k.c (its environment sending `go` for ever) would
+    report as holding; the hub sends before it receives, so the invariant is violated as
+    well. The verdicts equal the whole net's."""
+    from rssm_dsl.semantics.properties import Formula
+    from rssm_dsl.verify.budget import Budget
+    from rssm_dsl.verify.userprops import check_properties, property_subsystems
+
+    comp = compile_file(SPECS / "hub_stops.rssm")
+    assert comp.hpn is not None and comp.system is not None
+    net = flatten(comp.hpn)
+    plan = value_plan(comp, net)
+    where = {p.name: set(property_subsystems(net, p, [Formula(comp.system, e)
+                                                      for e in p.expressions], plan))
+             for p in comp.system.properties}
+    assert where == {"r1_works": {"k.c", "hub.c", "r1.c", "log.c"},
+                     "r2_works": {"k.c", "hub.c", "r2.c"},
+                     "no_work_before_go": {"k.c", "hub.c", "r1.c", "log.c"}}
+    expected = {"r1_works": False, "r2_works": False, "no_work_before_go": False}
+    for sliced in (True, False):
+        got = check_properties(net, comp.system, plan, Budget(60, None), 2_000_000,
+                               sliced=sliced)
+        assert {p.name: p.holds for p in got} == expected, [p.why for p in got]
+        assert all(p.counterexample is not None for p in got)
+    r = verify(net, VerifyOptions(values=plan, time_limit=60))  # type: ignore[arg-type]
+    assert {p.name: p.holds for p in r.user_properties} == expected
+    assert r.verdict is Verdict.VIOLATED and r.deadlock_free     # log.c runs on
+    assert {c.subsystem for c in r.progress} | set(r.progress_lost) == {"hub.c", "r1.c",
+                                                                          "r2.c"}
+
+
+def test_the_border_a_slice_needs_not_read_is_dropped() -> None:
+    """slicing.slice_net(quiet=...): a channel across the border on which the slice's end
+    never waits and whose value nothing reads has no places and no environment in the
+    slice (hub_stops: r2.c's `seen` into hub.c and hub.c's `job2` out to r2.c); one whose
+    end in the slice waits (`go`, were k.c outside) is kept whatever ``quiet`` says."""
+    from rssm_dsl.verify.slicing import channels, slice_net
+
+    net, _ = _compiled("hub_stops.rssm")
+    names = [c.name for c in channels(net)]
+    loud = slice_net(net, ["hub.c", "r1.c"])
+    quiet = slice_net(net, ["hub.c", "r1.c"], quiet=names)
+    gone = {c.name for c in channels(net)} - {p.channel for p in quiet.net.places
+                                              if p.subsystem is None}
+    assert gone == {"r2.c.seen->hub.c.seen", "hub.c.job2->r2.c.job"}
+    assert len(quiet.net.places) == len(loud.net.places) - 4
+    assert not any(t.channel in gone for t in quiet.net.transitions if t.name.startswith("env"))
+    assert any(t.name == "env[k.c.go->hub.c.go,write]" for t in quiet.net.transitions)
+
+
+def test_a_property_slice_holds_the_producers_of_the_values_it_tracks() -> None:
+    """response_fed_slice: a.c leaves `wait` on the value of `go`, which b.c sends it
+    non-blocking (a.c does not wait on b.c): the value is tracked, so b.c is in the slice
+    (its environment would send any value), and the property is decided there."""
+    from rssm_dsl.semantics.properties import Formula
+    from rssm_dsl.verify.userprops import property_subsystems
+
+    comp = compile_file(SPECS / "response_fed_slice.rssm")
+    assert comp.hpn is not None and comp.system is not None
+    net = flatten(comp.hpn)
+    [prop] = comp.system.properties
+    keep = property_subsystems(net, prop, [Formula(comp.system, e) for e in prop.expressions],
+                               value_plan(comp, net))
+    assert set(keep) == {"a.c", "b.c"}
