@@ -122,6 +122,7 @@ class Budget:
         self.start = time.monotonic() if start is None else start
         self.time_limit = time_limit
         self.deadline = None if time_limit is None else self.start + time_limit
+        self._caps: list[float] = []        # the seconds of the caps shortening ``deadline``
         self.max_memory = max_memory
         self.on_status = on_status
         self.status_every = status_every
@@ -172,13 +173,17 @@ class Budget:
         (whatever the try reports then is partial, though its search may be complete)."""
         saved = self.deadline
         cap = time.monotonic() + seconds
-        if saved is None or cap < saved:
+        shorter = saved is None or cap < saved
+        if shorter:
             self.deadline = cap
+            self._caps.append(seconds)
         outcome = Cap()
         try:
             yield outcome
         finally:
             self.deadline = saved
+            if shorter:
+                self._caps.pop()
             if (self.stop is not None and self.stop.kind == TIME
                     and (saved is None or time.monotonic() < saved)):
                 self.stop = None
@@ -209,6 +214,11 @@ class Budget:
         if self._cancelled:
             self._halt(INTERRUPT, now, None)
         if self.deadline is not None and now > self.deadline:
+            if self._caps:      # a try's share, not the run's own limit
+                self._halt(TIME, now, self._caps[-1], detail=(
+                    "the share of the run's time this step was given" if self.time_limit is None
+                    else f"the share of the run's {format_seconds(self.time_limit)} this "
+                    "step was given"))
             self._halt(TIME, now, self.time_limit)
         if self.max_memory is not None or self.on_status is not None:
             if extra or now - self._measured >= _MEASURE_EVERY:

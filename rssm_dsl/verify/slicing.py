@@ -179,7 +179,7 @@ class Slice:
 
 
 def slice_net(net: FlatNet, keep: Sequence[str], cut: bool = True,
-              quiet: Collection[str] = ()) -> Slice:
+              quiet: Collection[str] = (), uncut: Collection[str] = ()) -> Slice:
     """The slice of ``net`` for the group ``keep`` (the module docstring); with ``cut``
     false, the free channels inside the group are kept whole (both ends and the value they
     carry as in the whole net) instead of cut, each end with its own environment.
@@ -189,7 +189,9 @@ def slice_net(net: FlatNet, keep: Sequence[str], cut: bool = True,
     environment. With the environment free to fill or empty them at any time, they only
     select between data cases that end in the same place (and new(x) of such an input is a
     free choice anyway), so the group can do what it could with them, and no more than a
-    stuttering of it; each place dropped halves the slice's markings."""
+    stuttering of it; each place dropped halves the slice's markings. ``uncut`` names free
+    channels inside the group kept whole even when ``cut`` (the values they carry are read:
+    cut, the consumer's environment would send any value)."""
     group = frozenset(keep)
     quiet_chans = [c for c in channels(net) if c.name in quiet and _quiet(c, group)]
     gone = {p.index for p in net.places if p.subsystem is not None and p.subsystem not in group}
@@ -212,7 +214,7 @@ def slice_net(net: FlatNet, keep: Sequence[str], cut: bool = True,
     # own, each end its environment (the data's freshness is all it carries, and that the
     # environment covers)
     inside = [c for c in every if c.free and c.producer in group and c.consumer in group]
-    inner = inside if cut else []
+    inner = [c for c in inside if c.name not in uncut] if cut else []
     copies: dict[int, int] = {}                # producer's place -> -(k + 1), a new place
     own: dict[str | None, dict[int, int]] = {}
     for k, c in enumerate(inner):
@@ -277,7 +279,7 @@ def slice_net(net: FlatNet, keep: Sequence[str], cut: bool = True,
         new_sites=new_sites)
     return Slice(net, sliced, group, tuple(transition_of), place_of,
                  tuple(c.name for c in inner),
-                 tuple(c.name for c in inside) if not cut else ())
+                 tuple(c.name for c in inside if c not in inner))
 
 
 def _quiet(c: Channel, group: frozenset[str]) -> bool:

@@ -282,10 +282,35 @@ class StallTest:
 
         iters = set(self.iterations.get(q, ()))
         after_iter = {p for t in iters for p in net.transitions[t].post if p in mine}
-        if reach(after_iter, completes | iters | idle) & iters:
+        if self._fires(q, mine, after_iter, completes | idle, iters) & iters:
             return False                # an iteration without the channel's part
         after_done = {p for t in completes for p in net.transitions[t].post if p in mine}
         return not reach(after_done, iters) & touches
+
+    def _fires(self, q: str, mine: set[int], starts: set[int], blocked: set[int],
+               iters: set[int]) -> set[int]:
+        """Transitions of ``q`` that can fire from ``q``'s places ``starts`` (``mine``: all
+        of them), not through ``blocked``: a step once all its own input places are reached
+        (a join waits for every branch); the ITERATIONs ``iters`` reached, not gone
+        through."""
+        net = self.net
+        places, out = set(starts), set()
+        work = list(starts)
+        while work:
+            p = work.pop()
+            for t in self.takers[p]:
+                tr = net.transitions[t]
+                if t in out or t in blocked or tr.subsystem != q or any(
+                        x in mine and x not in places for x in tr.pre):
+                    continue
+                out.add(t)
+                if t in iters:
+                    continue
+                for p2 in tr.post:
+                    if p2 in mine and p2 not in places:
+                        places.add(p2)
+                        work.append(p2)
+        return out
 
     def _covers(self, seeds: list[int], mine: set[int]) -> bool:
         """Is every transition of ``mine`` finite in every infinite run in which ``seeds``

@@ -54,6 +54,7 @@ property undecided there: it is reported as not decided, never as holding.
 from __future__ import annotations
 
 import dataclasses
+import itertools
 from collections.abc import Sequence
 from typing import Any
 
@@ -99,13 +100,23 @@ def check_properties(net: FlatNet, system: System, plan: ValuePlan | None,
     on the same slice share one exploration (the engine ``reduction`` names: "off" full,
     "on" stubborn sets, "auto" and "compositional" full then stubborn sets)."""
     batches: dict[tuple[str, ...], list[tuple[Property, list[Formula]]]] = {}
+    small: dict[tuple[str, ...], list[tuple[Property, list[Formula]]]] = {}
     for prop in system.properties:
         formulas = [Formula(system, e) for e in prop.expressions]
         keep = (property_subsystems(net, prop, formulas, plan) if sliced
                 else tuple(net.subsystems))
         batches.setdefault(keep, []).append((prop, formulas))
+        if sliced and prop.kind == "always":
+            mine = wait_closure(net, {a.subsystem_id for f in formulas for a in f.atoms})
+            if len(mine) < len(keep):
+                small.setdefault(mine, []).append((prop, formulas))
     results: dict[str, PropertyResult] = {}
-    for keep, batch in batches.items():
+    if small:
+        _first_on_less(net, small, plan, budget, max_states, reduction, results)
+    for keep, whole_batch in batches.items():
+        batch = [(p, fs) for p, fs in whole_batch if p.name not in results]
+        if not batch:
+            continue
         if budget.stop is not None:
             for prop, _ in batch:
                 results[prop.name] = PropertyResult(
@@ -123,6 +134,43 @@ def check_properties(net: FlatNet, system: System, plan: ValuePlan | None,
     return tuple(results[p.name] for p in system.properties)
 
 
+def _first_on_less(net: FlatNet, small: dict[tuple[str, ...], list[tuple[Property,
+                                                                      list[Formula]]]],
+                   plan: ValuePlan | None, budget: Budget, max_states: int, reduction: str,
+                   results: dict[str, PropertyResult]) -> None:
+    """`always` properties first on the slice of what their subsystems wait on alone,
+    without the producers of the values they track (``small``: per slice, its
+    properties): the environment sends any value there, so what holds there holds in the
+    whole net, and a violation counts once its path, replayed in the whole net with the
+    values tracked, shows it (``_confirm_with_values``). What that leaves open goes on to
+    the slice with those producers. Each slice gets at most ``LESS_SECONDS`` (a share)."""
+    for keep, batch in small.items():
+        left = budget.run_remaining()
+        cap = min(LESS_SECONDS, left / 4) if left is not None else LESS_SECONDS
+        try:
+            with budget.capped(cap) as tried:
+                ex = _explore(net, keep, [f for _, fs in batch for f in fs], plan, budget,
+                              max_states, reduction)
+                found = {p.name: _judge(net, p, fs, ex, budget) for p, fs in batch}
+        except LimitReached:
+            continue
+        if tried.hit or budget.stop is not None:
+            continue
+        for prop, formulas in batch:
+            r = found[prop.name]
+            if r.holds is True:
+                results[prop.name] = r
+            elif r.holds is False and ex.slice is not None:
+                cx = (_confirm_with_values(net, ex.slice, plan, budget, prop, formulas,
+                                           r.counterexample) if plan is not None
+                      else r.counterexample)
+                if cx is not None:
+                    results[prop.name] = dataclasses.replace(r, counterexample=cx)
+
+
+LESS_SECONDS = 10.0     # at most, of the run's time: an `always` on its smaller slice first
+
+
 def _check_batch(net: FlatNet, batch: list[tuple[Property, list[Formula]]],
                  keep: tuple[str, ...], plan: ValuePlan | None, budget: Budget,
                  max_states: int, reduction: str, results: dict[str, PropertyResult]) -> None:
@@ -135,7 +183,9 @@ def _check_batch(net: FlatNet, batch: list[tuple[Property, list[Formula]]],
     decided when the whole net is not explored to the end."""
     ex = _explore(net, keep, [f for _, fs in batch for f in fs], plan, budget,
                   max_states, reduction)
-    found = {prop.name: _judge(net, prop, formulas, ex, budget) for prop, formulas in batch}
+    paths: dict[str, tuple[list[int], list[int]]] = {}
+    found = {prop.name: _judge(net, prop, formulas, ex, budget, paths)
+             for prop, formulas in batch}
     again = [(prop, fs) for prop, fs in batch
              if ex.slice is not None and plan is not None and found[prop.name].holds is False]
     # a response property that holds on a slice fed from outside is not taken on the
@@ -150,8 +200,14 @@ def _check_batch(net: FlatNet, batch: list[tuple[Property, list[Formula]]],
     if again and ex.slice is not None and plan is not None:
         # first the slice's own path, replayed in the whole net with the values tracked
         for prop, formulas in list(again):
-            cx = _confirm_with_values(net, ex.slice, plan, budget, prop, formulas,
-                                      found[prop.name].counterexample)
+            if found[prop.name].holds is not False:
+                continue
+            if prop.kind == "always":
+                cx = _confirm_with_values(net, ex.slice, plan, budget, prop, formulas,
+                                          found[prop.name].counterexample)
+            else:
+                cx = _confirm_response_with_values(net, ex.slice, plan, budget, prop,
+                                                   formulas, *paths[prop.name])
             if cx is not None:
                 found[prop.name] = dataclasses.replace(found[prop.name], counterexample=cx)
                 again.remove((prop, formulas))
@@ -270,7 +326,8 @@ def _explore(net: FlatNet, keep: tuple[str, ...], formulas: list[Formula],
         # the border's channels whose value nothing here reads are dropped (slice_net)
         read = _tracked(net, plan, keys)
         sl = slice_net(net, keep, quiet=[c.name for c in channels(net)
-                                         if f"channel {c.name}" not in read])
+                                         if f"channel {c.name}" not in read],
+                       uncut=[c.name for c in channels(net) if f"channel {c.name}" in read])
     base = sl.net if sl is not None else net
     tracked = track_values(track_new(base), plan, keys)
     nb = NetBits.of(tracked.net)
@@ -318,7 +375,11 @@ def _explored(tracked: TrackedNet, sl: Slice | None, result: SearchResult,
 
 
 def _judge(net: FlatNet, prop: Property, formulas: list[Formula], ex: _Explored,
-           budget: Budget) -> PropertyResult:
+           budget: Budget, paths: dict[str, tuple[list[int], list[int]]] | None = None,
+           ) -> PropertyResult:
+    """The verdict of ``prop`` on what ``ex`` explored. A violation on a slice also leaves
+    in ``paths`` its group's moves (the whole net's transitions): to the P-state, and on
+    to the state from which Q is lost for good."""
     graph, tracked, where = ex.graph, ex.tracked, ex.where
     if graph is None:
         return PropertyResult(prop.name, prop.kind, _text(prop), None, None, ex.why,
@@ -354,6 +415,11 @@ def _judge(net: FlatNet, prop: Property, formulas: list[Formula], ex: _Explored,
             to_never, x = shortest_path(graph, state, never, within=~q & ~qu)
             rest, cycle = _lasso(graph, x, budget)
             to_cycle, reach = (*to_never, *rest), len(to_never)
+        if paths is not None and ex.slice is not None:
+            tn = tracked.net.transitions
+            paths[prop.name] = (
+                ex.slice.whole_steps(tracked.steps(tn[t] for t in graph.path(state))),
+                ex.slice.whole_steps(tracked.steps(tn[t] for t in to_cycle[:reach])))
         try:
             cx = _lift(net, ex.slice, tracked, graph.path(state), to_cycle, cycle, prop, reach)
         except ReplayError as e:
@@ -397,15 +463,127 @@ def _confirm_with_values(net: FlatNet, sl: Slice, plan: ValuePlan, budget: Budge
     return None
 
 
-def _value_at(f: Formula, net: FlatNet, marking: frozenset[int]) -> bool | None:
+def _confirm_response_with_values(net: FlatNet, sl: Slice, plan: ValuePlan, budget: Budget,
+                                  prop: Property, formulas: list[Formula],
+                                  prefix: Sequence[int], on: Sequence[int],
+                                  ) -> Counterexample | None:
+    """A `whenever P eventually Q` violated on a slice whose environment writes values: the
+    slice's moves to the P-state and on to where Q is lost (``prefix``, ``on``) replayed in
+    the whole net with the values tracked (as ``_confirm_with_values``). It is a violation
+    of the whole net when, along the replay, P holds at a state after which Q never holds,
+    and at its end Q can never hold again (``_lost_for_good``). The counterexample goes on
+    with the rest of the system running (everyone in turn). None when that does not show
+    it (the whole net is then explored)."""
+    from rssm_dsl.verify.sliced import _Whole
+
+    whole = _Whole(net, plan, budget)
+    if whole.net is None:
+        return None
+    try:
+        ends = whole.replay(sl, [*prefix, *on])
+    except (ReplayError, LimitReached):
+        return None
+    trigger, goal = formulas
+    rule = whole.net.rule
+    for node in ends:
+        end = whole.raw(node.marking)
+        if not _lost_for_good(net, whole.net, node.marking, end, goal):
+            continue
+        path = node.path()
+        m = set(whole.net.initial)
+        marks = [frozenset(m)]
+        for u in path:
+            m.difference_update(rule.consume[u])
+            m.update(rule.produce[u])
+            marks.append(frozenset(m))
+        last_q = max((i for i, mk in enumerate(marks)
+                      if _value_at(goal, whole.net, mk) is not False), default=-1)
+        at = next((i for i in range(last_q + 1, len(marks))
+                   if _value_at(trigger, whole.net, marks[i]) is True), None)
+        if at is None:
+            continue
+        tail, around, _ = run_outside(net, end, frozenset())
+        after = fire_steps(net, end, tail)
+        return Counterexample(
+            "property", whole.steps(path[:at]), marking_labels(net, whole.raw(marks[at])),
+            subsystem=prop.name,
+            to_cycle=(*whole.steps(path[at:]), *(net.transitions[t] for t in tail)),
+            cycle=tuple(net.transitions[t] for t in around),
+            cycle_marking=marking_labels(net, after) if around else (),
+            values=whole.values(path))
+    return None
+
+
+def _lost_for_good(net: FlatNet, tracked: FlatNet, marking: frozenset[int],
+                   raw: frozenset[int], goal: Formula) -> bool:
+    """Can ``goal`` never hold again from ``marking`` (of the whole net with the values
+    tracked, ``tracked``)? Over-approximated: from the marking, every transition of the
+    flat net that could fire with every place some firing could mark marked at once
+    (``_could_fire``); a subsystem none of whose transitions is among them keeps its
+    behaviour and its values, another one may be in any behaviour whose places could be
+    marked, or in none. False when some such combination makes ``goal`` true, or it reads
+    a value of a subsystem that may still move. ``raw``: ``marking`` as the flat net's."""
+    markable, fire = _could_fire(net, raw)
+    moving = {net.transitions[t].subsystem for t in fire}
+    options: list[tuple[bool, ...]] = []
+    for a in goal.atoms:
+        if isinstance(a, Value):
+            if a.subsystem_id in moving:
+                return False
+            continue
+        now = any(p.index in raw for p in net.places
+                  if p.subsystem == a.subsystem_id and p.behaviour == a.behaviour)
+        if a.subsystem_id not in moving:
+            options.append((now,))
+        else:
+            options.append((False, True) if any(
+                p.index in markable for p in net.places
+                if p.subsystem == a.subsystem_id and p.behaviour == a.behaviour) else (False,))
+    if sum(len(o) > 1 for o in options) > 12:
+        return False
+    ins = [a for a in goal.atoms if isinstance(a, InBehaviour)]
+    for combo in itertools.product(*options):
+        chosen = {(a.subsystem_id, a.behaviour): v for a, v in zip(ins, combo, strict=True)}
+        if _value_at(goal, tracked, marking, chosen) is not False:
+            return False
+    return True
+
+
+def _could_fire(net: FlatNet, marking: frozenset[int]) -> tuple[set[int], set[int]]:
+    """The places some firing sequence from ``marking`` could mark and the transitions that
+    could fire, over-approximated: every place once marked is taken as marked for good."""
+    marked = set(marking)
+    fired: set[int] = set()
+    consumers: dict[int, list[FlatTransition]] = {}
+    for t in net.transitions:
+        for p in t.pre:
+            consumers.setdefault(p, []).append(t)
+    todo = [t for t in net.transitions if marked.issuperset(t.pre)]
+    while todo:
+        t = todo.pop()
+        if t.index in fired:
+            continue
+        fired.add(t.index)
+        for p in t.post:
+            if p not in marked:
+                marked.add(p)
+                todo.extend(u for u in consumers.get(p, ()) if u.index not in fired
+                            and marked.issuperset(u.pre))
+    return marked, fired
+
+
+def _value_at(f: Formula, net: FlatNet, marking: frozenset[int],
+              ins: dict[tuple[str, str], bool] | None = None) -> bool | None:
     """The formula in one marking of a net with the values tracked (as ``_truth`` reads the
-    states of a graph)."""
+    states of a graph); ``ins``: `SUB in BEH` atoms given other values."""
     row: list[int] = []
     getters: list[Any] = []
     for a in f.atoms:
         if isinstance(a, InBehaviour):
-            row.append(int(any(p.index in marking for p in net.places
-                               if p.subsystem == a.subsystem_id and p.behaviour == a.behaviour)))
+            given = ins.get((a.subsystem_id, a.behaviour)) if ins is not None else None
+            row.append(int(given) if given is not None else int(any(
+                p.index in marking for p in net.places
+                if p.subsystem == a.subsystem_id and p.behaviour == a.behaviour)))
             getters.append(("in", a))
         else:
             key = f"value {a.subsystem_id}.{a.variable_name}"

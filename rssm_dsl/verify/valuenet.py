@@ -19,8 +19,8 @@ which are tracked and what each transition does with them):
 Which values are tracked in a given net (a slice has only some subsystems): the values of the
 subsystems the net has, and a channel's slot only when every transition that fills the
 channel is one of its producer's sends (a slice's environment fills a border channel with
-anything). A transition with more than ``MAX_VALUATIONS`` variants leaves the largest of its
-values untracked.
+anything). A transition of the flat net with more than ``MAX_VALUATIONS`` variants (those of
+new(x) included) leaves the largest of its values untracked.
 
 Back to the flat net: the variants keep the ``origin`` of the transition they split and the
 value places have none, as new(x)'s, so counterexamples name the flat net's own steps.
@@ -103,13 +103,18 @@ class _Values:
         # (e.g. an untracked producer) is written by none of the steps: it stays constant,
         # which is exact only when no transition outside the plan changes it (true by
         # construction: every change of a variable is a step of the plan)
+        # at most MAX_VALUATIONS variants of one transition of the flat net, counting those
+        # new(x) already made (a fork reading 7 inputs is 128 of them before any value)
         doms = self.plan.vars
+        same: dict[int, list[Step]] = {}
+        for u, s in self.steps.items():
+            same.setdefault(self.t.origin[u], []).append(s)
         while True:
-            over = [s for s in self.steps.values() if _size(s, want, doms) > MAX_VALUATIONS]
+            over = [ss for ss in same.values()
+                    if sum(_size(s, want, doms) for s in ss) > MAX_VALUATIONS]
             if not over:
                 break
-            s = over[0]
-            drop = max((x for x in (*s.reads, *s.writes) if x in want),
+            drop = max((x for s in over[0] for x in (*s.reads, *s.writes) if x in want),
                        key=lambda x: len(doms[x].domain))
             want.discard(drop)
         return self._determined(want, writers)
@@ -135,9 +140,15 @@ def _determines(s: Step, x: str, want: set[str], doms: Mapping[str, Any]) -> boo
 
 
 def _size(s: Step, want: set[str], doms: Mapping[str, Any]) -> int:
+    """The variants of ``s`` with the values ``want`` tracked: one per valuation of what it
+    reads and writes (the old value), times the values a write computed from something
+    not tracked may take (each one a variant)."""
     n = 1
     for x in {*s.reads, *s.writes} & want:
         n *= len(doms[x].domain)
+    for x in set(s.writes) & want:
+        if any(r not in want for r in (s.reads if s.deps is None else s.deps.get(x, s.reads))):
+            n *= len(doms[x].domain)
     return n
 
 

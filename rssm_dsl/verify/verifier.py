@@ -283,8 +283,8 @@ def _first_steps(net: FlatNet, opts: VerifyOptions,
                  ) -> tuple[list[tuple[str, ...]] | None, VerifyReport | None]:
     """The blocking groups (when computed), and the report when it is decided here: the
     finite values tracked only where they matter (``_abstraction_first``), or every
-    subsystem stalling together (``_stalls_as_one``: the deadlock-only check decides
-    progress)."""
+    subsystem stalling together or in the stall order (``_stall_argument``: the
+    deadlock-only check decides progress)."""
     if opts.values is not None and opts.values_first:
         if opts.budget is None:
             opts = dataclasses.replace(opts, budget=Budget(opts.time_limit, opts.max_memory))
@@ -295,7 +295,8 @@ def _first_steps(net: FlatNet, opts: VerifyOptions,
             and opts.slicing):
         return None, None
     groups = _groups(net, opts)
-    if not _stalls_as_one(net, groups):
+    why = _stall_argument(net, groups, opts)
+    if why is None:
         return groups, None
     # the deadlock-only check: the full exploration gets the share a sliced net gives its
     # first try (beyond it, the compositional check, cheap without the per-subsystem
@@ -312,20 +313,37 @@ def _first_steps(net: FlatNet, opts: VerifyOptions,
         again = verify(net, dataclasses.replace(opts, stall_shortcut=False))
         if again.verdict is Verdict.VIOLATED:
             return groups, again
-    return groups, _progress_from_deadlocks(net, quick)
+    return groups, _progress_from_deadlocks(net, quick, why)
 
 
-def _stalls_as_one(net: FlatNet, groups: list[tuple[str, ...]]) -> bool:
-    """Every subsystem of the net in one blocking group that stalls together (stalls.py):
-    no subsystem can run on once another stops iterating."""
+TOGETHER = ("progress follows from deadlock freedom: every subsystem is in one blocking "
+            "group, and none can run on once another stops iterating, so a loss of "
+            "progress would be a deadlock")
+
+
+def _stall_argument(net: FlatNet, groups: list[tuple[str, ...]],
+                    opts: VerifyOptions) -> str | None:
+    """Why progress follows from deadlock freedom, when it does: every subsystem of the
+    net in one blocking group that stalls together (stalls.py: no subsystem can run on once
+    another stops iterating), or, with the conditions as free choices (the net stalls.py's
+    structural test reads), one whose subsystems the stall order proves (a coordinator that
+    never waits and robots that wait on it)."""
     if len(groups) != 1 or set(groups[0]) != set(subsystems_of(net)):
-        return False
-    return StallTest(net).together(groups[0])
+        return None
+    test = StallTest(net)
+    if test.together(groups[0]):
+        return TOGETHER
+    if opts.values is None and test.ordered(groups[0]) is not None:
+        from rssm_dsl.verify.sliced import ORDERED
+
+        return ORDERED
+    return None
 
 
-def _progress_from_deadlocks(net: FlatNet, quick: VerifyReport) -> VerifyReport:
+def _progress_from_deadlocks(net: FlatNet, quick: VerifyReport,
+                             why: str = TOGETHER) -> VerifyReport:
     """The report of the deadlock-only check of a net whose subsystems all stall together
-    (``_stalls_as_one``), with progress decided by it. The argument of stalls.py with the
+    (``_stall_argument``, whose reason is ``why``), with progress decided by it. The argument of stalls.py with the
     group the whole net: a subsystem that loses progress at X leaves, once the group has
     fired what it can (finitely often: nobody iterates for ever without it), a marking where
     none of the group is enabled and it is unfinished; only the plumbing of the agents and
@@ -336,10 +354,7 @@ def _progress_from_deadlocks(net: FlatNet, quick: VerifyReport) -> VerifyReport:
         return dataclasses.replace(
             quick, verdict=Verdict.VERIFIED, progress_ok=True, progress_requested=True,
             progress_checked=checked, notes=(
-                *(n for n in quick.notes if "--no-progress-check" not in n),
-                "progress follows from deadlock freedom: every subsystem is in one blocking "
-                "group, and none can run on once another stops iterating, so a loss of "
-                "progress would be a deadlock"))
+                *(n for n in quick.notes if "--no-progress-check" not in n), why))
     if quick.verdict is Verdict.INCONCLUSIVE and quick.why_undecided is None:
         return dataclasses.replace(quick, progress_requested=True,
                                    why_undecided="deadlock freedom not decided")

@@ -218,3 +218,22 @@ def test_a_first_try_cut_by_its_cap_is_not_the_verdict(monkeypatch: pytest.Monke
     assert slowed, "the progress check of the capped first try ran"
     assert report.verdict is Verdict.VERIFIED, report.why_undecided
     assert report.stop is None
+
+
+def test_a_tries_share_running_out_is_not_called_the_runs_limit() -> None:
+    """A cap (the falsifier's 10 s after a violation, a first try) that runs out names its
+    own seconds and says it was a share of the run's limit; the run goes on afterwards."""
+    b = Budget(time_limit=300.0)
+    with b.capped(0.0) as cap, b.running("the test phase"), \
+            pytest.raises(LimitReached) as e:
+        b.check()
+    assert e.value.stop.limit == 0.0
+    assert e.value.stop.message == ("time limit of 0 s reached in the test phase: the share "
+                                    "of the run's 300 s this step was given")
+    assert cap.hit and b.stop is None
+    b.check()                           # the run's own limit holds again
+    # a cap no shorter than the run's own time: the run's own stop
+    with pytest.raises(LimitReached) as e, b.capped(600.0):
+        b.deadline = 0.0
+        b.check()
+    assert e.value.stop.limit == 300.0

@@ -82,3 +82,15 @@ def test_a_random_live_ring_is_verified_by_the_order(tmp_path: Path) -> None:
     r = verify(net, VerifyOptions(time_limit=120))
     assert r.verdict.name == "VERIFIED"
     assert any(ORDERED in n for n in r.notes)
+
+
+def test_a_producer_that_stops_sending_proves_nobody() -> None:
+    """netkit.starved_consumer: P sends once, then iterates for ever without sending; C
+    waits for it, blocking. P's iterations do not meet the channel in every iteration, so
+    the stall order proves nothing for C (C does lose progress), though P's stall stops C."""
+    from netkit import starved_consumer
+
+    net = starved_consumer()
+    assert StallTest(net).ordered(("P", "C")) is None
+    r = verify(net)
+    assert r.progress_ok is False and [c.subsystem for c in r.progress] == ["C"]

@@ -326,6 +326,15 @@ def test_a_property_is_checked_on_what_its_subsystems_wait_on() -> None:
                                sliced=sliced)
         assert {p.name: p.holds for p in got} == expected, [p.why for p in got]
         assert all(p.counterexample is not None for p in got)
+        if sliced:
+            # r1_works: the slice's lasso replayed in the whole net with the values, to
+            # a state from which r1.c can never reach `work` (hub.c waits for ever)
+            [r1] = [p for p in got if p.name == "r1_works"]
+            assert "the slice of" in r1.why, r1.why
+            cx = r1.counterexample
+            assert cx is not None and cx.to_cycle
+            assert any("k.c switches from run to the end" in t.label for t in
+                       (*cx.steps, *cx.to_cycle))
     r = verify(net, VerifyOptions(values=plan, time_limit=60))  # type: ignore[arg-type]
     assert {p.name: p.holds for p in r.user_properties} == expected
     assert r.verdict is Verdict.VIOLATED and r.deadlock_free     # log.c runs on
