@@ -375,3 +375,22 @@ def test_a_property_slice_holds_the_producers_of_the_values_it_tracks() -> None:
     keep = property_subsystems(net, prop, [Formula(comp.system, e) for e in prop.expressions],
                                value_plan(comp, net))
     assert set(keep) == {"a.c", "b.c"}
+
+
+def test_q_is_lost_for_good_only_when_nothing_it_reads_can_move() -> None:
+    """userprops._lost_for_good, which confirms a response violation found on a slice: at
+    the start of hub_stops, r1.c is idle but can still reach `work` (k.c has not ended):
+    `r1.c in work` is not lost; with every subsystem taken as standing still it would be."""
+    from rssm_dsl.semantics.properties import Formula
+    from rssm_dsl.verify.sliced import _Whole
+    from rssm_dsl.verify.userprops import _lost_for_good
+
+    comp = compile_file(SPECS / "hub_stops.rssm")
+    assert comp.hpn is not None and comp.system is not None
+    net = flatten(comp.hpn)
+    whole = _Whole(net, value_plan(comp, net))
+    assert whole.net is not None
+    [prop] = [p for p in comp.system.properties if p.name == "r1_works"]
+    goal = Formula(comp.system, prop.expressions[1])
+    start = frozenset(whole.net.initial)
+    assert _lost_for_good(net, whole.net, start, whole.raw(start), goal) is False
