@@ -158,12 +158,13 @@ def verify_cmd(
         live = _Live(tty) if tty or progress else None
         budget = Budget(None if math.isinf(timeout) else timeout, memory, start=started,
                         on_status=live)
-        watch = Watchdog(budget, _give_up(budget, live, file, format, progress_check))
+        spec: list[Any] = []        # the system once compiled: its properties, if stopped
+        watch = Watchdog(budget, _give_up(budget, live, file, format, progress_check, spec))
         try:
             with _limited(budget), watch:
                 code = _verify(budget, watch, live, file, format, reduction, max_states,
                                invariants, progress_check, cross_check, promela,
-                               show_invariants, fairness, falsifier)
+                               show_invariants, fairness, falsifier, spec)
         except KeyboardInterrupt:               # a second Ctrl-C: quit at once
             code = EXIT_INTERRUPTED
             typer.echo("rssmc: interrupted", err=True)
@@ -182,9 +183,11 @@ def verify_cmd(
 def _verify(budget: Budget, watch: Watchdog, live: _Live | None, file: Path, format: Format,
             reduction: str, max_states: int, invariants: bool, progress_check: bool,
             cross_check: bool, promela: Path | None, show_invariants: bool,
-            fairness: str = "strong", falsifier: FalsifyOptions | None = None) -> int:
+            fairness: str = "strong", falsifier: FalsifyOptions | None = None,
+            spec: list[Any] | None = None) -> int:
     """Compile, verify, print; the exit code. Every phase runs named in the budget, under
-    the watchdog: a limit ends any of them (``_stopped``: the partial report)."""
+    the watchdog: a limit ends any of them (``_stopped``: the partial report, with the
+    properties of the system ``spec`` receives once compiled)."""
     from rssm_dsl.hpn.flatten import flatten
     from rssm_dsl.pipeline import compile_file
     from rssm_dsl.verify import VerifyOptions, render_text, verify
@@ -206,6 +209,8 @@ def _verify(budget: Budget, watch: Watchdog, live: _Live | None, file: Path, for
                 watch.finish()
                 typer.echo(unknown, err=True)
                 return EXIT_BAD_INPUT
+            if spec is not None and comp.system is not None:
+                spec.append(comp.system)
             budget.check()          # a limit reached while compiling: no further phase
             with budget.running("the flattening"):
                 net = flatten(comp.hpn)
@@ -245,7 +250,7 @@ def _verify(budget: Budget, watch: Watchdog, live: _Live | None, file: Path, for
         watch.finish()
         stop = e.stop if isinstance(e, LimitReached) else budget.out_of_memory()
         return _stopped(budget, live, stop, watch.interrupted, system, file, format,
-                        progress_check)
+                        progress_check, spec)
     if live is not None:
         live.clear()
     if format is Format.json:
@@ -266,13 +271,25 @@ def _verify(budget: Budget, watch: Watchdog, live: _Live | None, file: Path, for
     return int(result.exit_code)
 
 
+def _not_decided(spec: list[Any] | None, stop: Stop) -> tuple[Any, ...]:
+    """The properties of the compiled system (``spec``), each not decided by ``stop``."""
+    if not spec:
+        return ()
+    from rssm_dsl.verify.userprops import not_decided
+
+    return not_decided(spec[0], stop.message)
+
+
 def _stopped(budget: Budget, live: _Live | None, stop: Stop, interrupted: str | None,
-             system: str, file: Path, format: Format, progress_check: bool) -> int:
+             system: str, file: Path, format: Format, progress_check: bool,
+             spec: list[Any] | None = None) -> int:
     """A limit stopped a phase that does not return a report (the front end), or the
-    watchdog interrupted one: the partial report of what was done; its exit code."""
+    watchdog interrupted one: the partial report of what was done (every property not
+    decided); its exit code."""
     from rssm_dsl.verify.partial import PartialReport
 
-    partial = PartialReport.of(budget, stop, system, str(file), interrupted, progress_check)
+    partial = PartialReport.of(budget, stop, system, str(file), interrupted, progress_check,
+                               _not_decided(spec, stop))
     if live is not None:
         live.clear()
     typer.echo(partial.render(format is Format.json), nl=False)
@@ -280,14 +297,16 @@ def _stopped(budget: Budget, live: _Live | None, stop: Stop, interrupted: str | 
 
 
 def _give_up(budget: Budget, live: _Live | None, file: Path, format: Format,
-             progress_check: bool) -> Callable[[Stop, str], None]:
+             progress_check: bool, spec: list[Any] | None = None,
+             ) -> Callable[[Stop, str], None]:
     """What the watchdog does when the main thread does not return after a limit (it is
     inside C code): print the partial report straight to the file descriptors and end the
     process with its exit code, without the interpreter's teardown."""
     from rssm_dsl.verify.partial import PartialReport
 
     def give_up(stop: Stop, phase: str) -> None:
-        partial = PartialReport.of(budget, stop, file.stem, str(file), phase, progress_check)
+        partial = PartialReport.of(budget, stop, file.stem, str(file), phase, progress_check,
+                                   _not_decided(spec, stop))
         text = partial.render(format is Format.json)
         with contextlib.suppress(OSError, ValueError):
             sys.stdout.flush()

@@ -17,7 +17,7 @@ from typing import Any
 
 from rssm_core.records import dataclass
 from rssm_dsl.verify.budget import INTERRUPT, Budget, Stop, format_seconds, format_size
-from rssm_dsl.verify.report import EXIT_INTERRUPTED, Verdict, exit_code
+from rssm_dsl.verify.report import EXIT_INTERRUPTED, PropertyResult, Verdict, exit_code
 
 SHOWN_PHASES = 12       # phases completed listed in the text report (JSON: all of them)
 SHOWN_DEPTH = 2         # phases nested deeper are not listed (one per subsystem, ...)
@@ -35,17 +35,19 @@ class PartialReport:
     max_memory: int | None
     peak_memory: int
     progress_requested: bool = True
+    properties: tuple[PropertyResult, ...] = ()   # the spec's, each not decided
 
     @classmethod
     def of(cls, budget: Budget, stop: Stop, system: str, file: str, interrupted: str | None,
-           progress_requested: bool = True) -> PartialReport:
+           progress_requested: bool = True,
+           properties: tuple[PropertyResult, ...] = ()) -> PartialReport:
         seen: dict[str, float] = {}
         for name, seconds, depth in list(budget.completed):
             if depth <= SHOWN_DEPTH and name not in seen:
                 seen[name] = seconds
         return cls(system, file, stop, tuple(seen.items()), interrupted, budget.elapsed(),
                    budget.time_limit, budget.max_memory, max(budget.peak, budget.resident()),
-                   progress_requested)
+                   progress_requested, properties)
 
     @property
     def exit_code(self) -> int:
@@ -80,6 +82,10 @@ class PartialReport:
                  f"  phases:     {self.phases_text()}",
                  f"  limits:     {time_limit}, {memory} (peak {format_size(self.peak_memory)} "
                  f"resident); stopped after {self.stop.at:.1f} s: {self.stop.message}"]
+        if self.properties:
+            lines += ["", f"properties stated in the spec ({len(self.properties)}):"]
+            for prop in self.properties:
+                lines += prop.lines()
         return "\n".join(lines) + "\n"
 
     def to_json(self) -> dict[str, Any]:
@@ -109,7 +115,8 @@ class PartialReport:
             "phases_completed": [{"phase": name, "seconds": round(seconds, 3)}
                                  for name, seconds in self.completed],
             "interrupted_phase": self.interrupted,
-            "groups": [], "user_properties": [], "unconfirmed": [], "simulation": None,
+            "groups": [], "user_properties": [p.to_json() for p in self.properties],
+            "unconfirmed": [], "simulation": None,
             "conditions": {"new_tracked_cases": 0, "tracked_values": [], "free_choices": []},
         }
 

@@ -171,6 +171,13 @@ def _first_on_less(net: FlatNet, small: dict[tuple[str, ...], list[tuple[Propert
 LESS_SECONDS = 10.0     # at most, of the run's time: an `always` on its smaller slice first
 
 
+def not_decided(system: System, why: str) -> tuple[PropertyResult, ...]:
+    """Every property of ``system``, not decided for the reason ``why`` (a run stopped
+    before they were checked)."""
+    return tuple(PropertyResult(p.name, p.kind, _text(p), None, None, f"not decided: {why}",
+                                p.span) for p in system.properties)
+
+
 def _check_batch(net: FlatNet, batch: list[tuple[Property, list[Formula]]],
                  keep: tuple[str, ...], plan: ValuePlan | None, budget: Budget,
                  max_states: int, reduction: str, results: dict[str, PropertyResult]) -> None:

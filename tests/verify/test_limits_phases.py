@@ -323,3 +323,25 @@ def test_the_partial_json_has_every_key_of_the_full_report(
     keys = set(json.loads(partial.stdout))
     assert set(json.loads(full.stdout)) <= keys
     assert {"phases_completed", "interrupted_phase"} <= keys
+
+
+def test_a_partial_report_lists_every_property_as_not_decided(
+        monkeypatch: pytest.MonkeyPatch) -> None:
+    """A limit that stops a phase after the compilation: the report lists the spec's
+    properties, each not decided with the limit as the reason (JSON and text)."""
+    import rssm_dsl.hpn.flatten as flatten
+
+    spec = Path(__file__).parent / "specs" / "hub_stops.rssm"
+    monkeypatch.setattr(flatten, "flatten", slowed(flatten.flatten))
+    result, _ = verify_in_process(spec, "--timeout", "2", "--format", "json")
+    assert result.exit_code == EXIT_INCONCLUSIVE, result.stdout + result.stderr
+    report = json.loads(result.stdout)
+    props = {p["name"]: p for p in report["user_properties"]}
+    assert set(props) == {"r1_works", "r2_works", "no_work_before_go"}
+    assert all(p["holds"] is None and "time limit of 2 s reached in the flattening" in p["why"]
+               for p in props.values())
+    text, _ = verify_in_process(spec, "--timeout", "2")
+    lines = text.stdout.splitlines()
+    assert "properties stated in the spec (3):" in lines
+    assert any(line.startswith("  r1_works (") and ": not decided: whenever" in line
+               for line in lines)
