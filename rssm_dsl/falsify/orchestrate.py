@@ -7,7 +7,9 @@
 2. else the random runs, for ``SLICE`` seconds at most (``SHARE`` of the time limit if that is
    less). A violation they find and the net confirms is the verdict (VIOLATED with its
    counterexample); the exhaustive engines then run again for ``AFTER_FOUND`` seconds at
-   most, for the rest of the picture (the shortest counterexamples, the other properties);
+   most, for the rest of the picture (the shortest counterexamples, the other properties),
+   and the properties they leave open ``PROPERTIES_AFTER`` seconds (half the time left at
+   most) more;
 3. else the exhaustive engines again, with the rest of the budget.
 
 So a specification the engines decide in their first second costs ``CHECK`` seconds more,
@@ -26,11 +28,13 @@ from rssm_dsl.hpn.flat import FlatNet
 from rssm_dsl.pipeline import Compilation
 from rssm_dsl.verify import VerifyOptions, verify
 from rssm_dsl.verify.report import Verdict, VerifyReport
+from rssm_dsl.verify.verifier import properties_again
 
 FIRST_TRY = 1.0       # seconds of the exhaustive engines before the random runs
 SLICE = 1.0           # seconds of random runs when the first try decided nothing
 CHECK = 0.25          # seconds of random runs after a proof (the consistency check)
 AFTER_FOUND = 10.0    # seconds of the engines again once the runs found a violation
+PROPERTIES_AFTER = 30.0   # ... and then of the properties they left open (half the time left)
 SHARE = 0.05          # of the time limit, at most, for each of the above
 
 
@@ -75,6 +79,12 @@ def verify_with_simulation(net: FlatNet, comp: Compilation, options: VerifyOptio
     if again.hit and budget.stop is None:
         second = _cut(second, f"the {AFTER_FOUND:g} s the exhaustive engines were given once "
                               "the random runs had found a violation")
+    if budget.stop is None and any(p.holds is None for p in second.user_properties):
+        # the properties those seconds left open: a share of the time left, their own
+        left = budget.run_remaining()
+        with budget.capped(PROPERTIES_AFTER if left is None
+                           else min(PROPERTIES_AFTER, left / 2)):
+            second = properties_again(net, again_options, second)
     return apply(second, net, found)
 
 

@@ -213,7 +213,7 @@ def _check_batch(net: FlatNet, batch: list[tuple[Property, list[Formula]]],
                 cx = _confirm_with_values(net, ex.slice, plan, budget, prop, formulas,
                                           found[prop.name].counterexample)
             else:
-                cx = _confirm_response_with_values(net, ex.slice, plan, budget, prop,
+                cx = _confirm_response_with_values(net, ex, plan, budget, prop,
                                                    formulas, *paths[prop.name])
             if cx is not None:
                 found[prop.name] = dataclasses.replace(found[prop.name], counterexample=cx)
@@ -349,9 +349,20 @@ def _explore(net: FlatNet, keep: tuple[str, ...], formulas: list[Formula],
             return _explored(tracked, sl, result, where, reduction)
     # stubborn sets keeping every transition that can change an atom visible, with the
     # cycle proviso (stubborn.py): they keep both kinds of property (docs/verify.md)
-    safe = 0            # the places one-token semiflows prove safe need no up-set
-    flows: list[int] = []   # ... and those carrying one token give necessary enabling sets
-    for f in one_token_semiflows(tracked.net, range(len(tracked.net.places)),
+    safe, flows = _flows(tracked.net, budget)
+    reduced = explore_reduced(nb, safe_places=safe, max_states=max_states,
+                              max_counterexamples=1, for_progress=True, budget=budget,
+                              visible=visible_transitions(tracked.net, atoms),
+                              semiflows=flows)
+    return _explored(tracked, sl, reduced, where, reduction)
+
+
+def _flows(net: FlatNet, budget: Budget) -> tuple[int, list[int]]:
+    """The places one-token semiflows prove safe (they need no up-set), and the semiflows
+    carrying one token (they give necessary enabling sets), as place masks."""
+    safe = 0
+    flows: list[int] = []
+    for f in one_token_semiflows(net, range(len(net.places)),
                                  lambda: budget.poll() is not None):
         mask = 0
         for p in f.support:
@@ -359,11 +370,7 @@ def _explore(net: FlatNet, keep: tuple[str, ...], formulas: list[Formula],
         safe |= mask
         if f.tokens == 1 and all(w == 1 for _, w in f.weights):
             flows.append(mask)
-    reduced = explore_reduced(nb, safe_places=safe, max_states=max_states,
-                              max_counterexamples=1, for_progress=True, budget=budget,
-                              visible=visible_transitions(tracked.net, atoms),
-                              semiflows=flows)
-    return _explored(tracked, sl, reduced, where, reduction)
+    return safe, flows
 
 
 def _explored(tracked: TrackedNet, sl: Slice | None, result: SearchResult,
@@ -470,21 +477,22 @@ def _confirm_with_values(net: FlatNet, sl: Slice, plan: ValuePlan, budget: Budge
     return None
 
 
-def _confirm_response_with_values(net: FlatNet, sl: Slice, plan: ValuePlan, budget: Budget,
-                                  prop: Property, formulas: list[Formula],
+def _confirm_response_with_values(net: FlatNet, ex: _Explored, plan: ValuePlan,
+                                  budget: Budget, prop: Property, formulas: list[Formula],
                                   prefix: Sequence[int], on: Sequence[int],
                                   ) -> Counterexample | None:
     """A `whenever P eventually Q` violated on a slice whose environment writes values: the
     slice's moves to the P-state and on to where Q is lost (``prefix``, ``on``) replayed in
     the whole net with the values tracked (as ``_confirm_with_values``). It is a violation
     of the whole net when, along the replay, P holds at a state after which Q never holds,
-    and at its end Q can never hold again (``_lost_for_good``). The counterexample goes on
+    and at its end Q can never hold again (``_lost_for_good``, ``_lost_in_slice``). The counterexample goes on
     with the rest of the system running (everyone in turn). None when that does not show
     it (the whole net is then explored)."""
     from rssm_dsl.verify.sliced import _Whole
 
+    sl = ex.slice
     whole = _Whole(net, plan, budget)
-    if whole.net is None:
+    if whole.net is None or sl is None:
         return None
     try:
         ends = whole.replay(sl, [*prefix, *on])
@@ -494,7 +502,8 @@ def _confirm_response_with_values(net: FlatNet, sl: Slice, plan: ValuePlan, budg
     rule = whole.net.rule
     for node in ends:
         end = whole.raw(node.marking)
-        if not _lost_for_good(net, whole.net, node.marking, end, goal):
+        if not (_lost_for_good(net, whole.net, node.marking, end, goal)
+                or _lost_in_slice(ex, whole.net, node.marking, goal, budget)):
             continue
         path = node.path()
         m = set(whole.net.initial)
@@ -509,7 +518,10 @@ def _confirm_response_with_values(net: FlatNet, sl: Slice, plan: ValuePlan, budg
                    if _value_at(trigger, whole.net, marks[i]) is True), None)
         if at is None:
             continue
-        tail, around, _ = run_outside(net, end, frozenset())
+        try:
+            tail, around, _ = run_outside(net, end, frozenset())
+        except ReplayError:         # no cycle found soon: the lasso ends where Q is lost
+            tail, around = [], []
         after = fire_steps(net, end, tail)
         return Counterexample(
             "property", whole.steps(path[:at]), marking_labels(net, whole.raw(marks[at])),
@@ -519,6 +531,55 @@ def _confirm_response_with_values(net: FlatNet, sl: Slice, plan: ValuePlan, budg
             cycle_marking=marking_labels(net, after) if around else (),
             values=whole.values(path))
     return None
+
+
+def _lost_in_slice(ex: _Explored, whole: FlatNet, marking: frozenset[int], goal: Formula,
+                   budget: Budget) -> bool:
+    """Can ``goal`` never hold again from ``marking`` (of the whole net with the values
+    tracked, ``whole``)? The slice ``ex`` explored can do all its subsystems can do in the
+    whole net, whatever the rest does (and with any value from outside), so it is so when
+    the slice, started from the marking's counterpart (its places by name: the producer's
+    copy of a cut channel as the channel), reaches no state where ``goal`` may hold. False
+    when a place of the slice has no counterpart, the counterpart does not mark one value
+    of each value the slice tracks, or the exploration is cut (``LOST_STATES``)."""
+    net = ex.tracked.net
+    named = {whole.places[p].name for p in marking}
+    known = {p.name for p in whole.places}
+    start: set[int] = set()
+    for p in net.places:
+        name = p.name.removesuffix("'")
+        if name not in known:
+            return False
+        if name in named:
+            start.add(p.index)
+    per_value: dict[str, int] = {}
+    for p in net.places:
+        if (p.channel or "").startswith("value "):
+            per_value[p.channel or ""] = per_value.get(p.channel or "", 0) + (p.index in start)
+    if any(n != 1 for n in per_value.values()):
+        return False
+    from_there = dataclasses.replace(net, initial=frozenset(start))
+    nb = NetBits.of(from_there)
+    try:
+        result = explore_full(nb, max_states=LOST_STATES, keep_graph=True,
+                              max_counterexamples=0, budget=budget)
+        if result.graph is None and "state limit" in (result.stopped or ""):
+            # stubborn sets with the goal's atoms visible (they reach every combination
+            # of the atoms the full search reaches, as for `always`)
+            safe, flows = _flows(from_there, budget)
+            result = explore_reduced(nb, safe_places=safe, max_states=LOST_STATES,
+                                     max_counterexamples=0, for_progress=True, budget=budget,
+                                     visible=visible_transitions(from_there, goal.atoms),
+                                     semiflows=flows)
+    except LimitReached:
+        return False
+    if not result.complete or result.graph is None:
+        return False
+    value, unknown = _truth(goal, result.graph, from_there)
+    return not (value | unknown).any()
+
+
+LOST_STATES = 200_000   # at most, from where a slice's response violation ends in the whole net
 
 
 def _lost_for_good(net: FlatNet, tracked: FlatNet, marking: frozenset[int],

@@ -391,6 +391,27 @@ def _with_properties(net: FlatNet, opts: VerifyOptions, report: VerifyReport) ->
                                seconds=report.seconds + spent)
 
 
+def properties_again(net: FlatNet, opts: VerifyOptions, report: VerifyReport) -> VerifyReport:
+    """``report`` with the properties a shorter try left not decided checked again with
+    ``opts.budget``'s time; the rest of the report stands (the caller knows the system is
+    violated: the random runs found it)."""
+    from rssm_dsl.verify.userprops import check_properties
+
+    system = opts.values.system if opts.values is not None else None
+    open_ = {r.name for r in report.user_properties if r.holds is None}
+    if system is None or not open_:
+        return report
+    assert opts.budget is not None
+    start = time.monotonic()
+    some = dataclasses.replace(system, properties=tuple(p for p in system.properties
+                                                        if p.name in open_))
+    got = {r.name: r for r in check_properties(net, some, opts.values, opts.budget,
+                                               opts.max_states, opts.reduction)}
+    return dataclasses.replace(
+        report, user_properties=tuple(got.get(r.name, r) for r in report.user_properties),
+        seconds=report.seconds + time.monotonic() - start)
+
+
 def _abstraction_first(net: FlatNet, opts: VerifyOptions) -> VerifyReport:
     """The finite values tracked only where they matter: the conditions as free choices
     first (an over-approximation: what it proves holds), and when that finds a violation,
