@@ -500,6 +500,8 @@ def _confirm_response_with_values(net: FlatNet, ex: _Explored, plan: ValuePlan,
         return None
     trigger, goal = formulas
     rule = whole.net.rule
+    inside = _inside(net, {a.subsystem_id for f in formulas for a in f.atoms
+                           if isinstance(a, Value)})
     for node in ends:
         end = whole.raw(node.marking)
         if not (_lost_for_good(net, whole.net, node.marking, end, goal)
@@ -514,8 +516,11 @@ def _confirm_response_with_values(net: FlatNet, ex: _Explored, plan: ValuePlan,
             marks.append(frozenset(m))
         last_q = max((i for i, mk in enumerate(marks)
                       if _value_at(goal, whole.net, mk) is not False), default=-1)
+        # the P-state where no subsystem whose values they read is inside its transition
+        # function (``_settled``: the interpreter reads the same values there)
         at = next((i for i in range(last_q + 1, len(marks))
-                   if _value_at(trigger, whole.net, marks[i]) is True), None)
+                   if _value_at(trigger, whole.net, marks[i]) is True
+                   and not inside.intersection(whole.raw(marks[i]))), None)
         if at is None:
             continue
         try:
@@ -830,7 +835,14 @@ def _settled(graph: Graph, tracked: TrackedNet, subsystems: set[str]) -> Any:
     the values tracked are already the function's results (dataplan.py applies it at the
     fork) while the interpreter and the ROS 2 nodes commit them at the join: a property's
     counterexample ends at a settled state, where both read the same values."""
-    src = tracked.source
+    inside = _inside(tracked.source, subsystems)
+    places = [p.index for p in tracked.net.places if tracked.place_origin[p.index] in inside]
+    return ~_any_marked(graph, places)
+
+
+def _inside(src: FlatNet, subsystems: set[str]) -> set[int]:
+    """The places of ``src`` between the fork and the join of the transition functions of
+    ``subsystems`` (``_settled``)."""
     by_name = {t.name: t for t in src.transitions}
     users: dict[int, list[FlatTransition]] = {}
     for t in src.transitions:
@@ -856,8 +868,7 @@ def _settled(graph: Graph, tracked: TrackedNet, subsystems: set[str]) -> Any:
                         region.add(q)
                         frontier.append(q)
         inside |= region
-    places = [p.index for p in tracked.net.places if tracked.place_origin[p.index] in inside]
-    return ~_any_marked(graph, places)
+    return inside
 
 
 def _any_marked(graph: Graph, places: Sequence[int]) -> Any:
