@@ -203,6 +203,7 @@ class PropertyResult:
     counterexample: Counterexample | None
     why: str
     span: Span
+    states: int = 0                # the states explored to decide it (0: none decided it)
 
     def lines(self) -> list[str]:
         word = {True: "holds", False: "VIOLATED", None: "not decided"}[self.holds]
@@ -215,6 +216,7 @@ class PropertyResult:
     def to_json(self) -> dict[str, Any]:
         return {"name": self.name, "kind": self.kind, "text": self.text, "holds": self.holds,
                 "why": self.why, "file": self.span.file, "line": self.span.line,
+                "states": self.states,
                 "counterexample": self.counterexample.to_json()
                 if self.counterexample is not None else None}
 
@@ -488,15 +490,18 @@ def _summary_lines(r: VerifyReport) -> list[str]:
         "not checked (--no-progress-check)" if not r.progress_requested else undecided))
     if r.progress_requested:
         out.append(f"  assuming:   {PROGRESS_ASSUMPTIONS[r.fairness]}")
+    # the properties' own explorations (on their slices): the largest one
+    props = max((p.states for p in r.user_properties), default=0)
+    also = f"; the properties: {props:,} states at most" if props else ""
     if r.method == "invariants":
-        out.append(f"  states:     none explored (decided from the place invariants), "
+        out.append(f"  states:     none explored (decided from the place invariants){also}, "
                    f"{r.seconds:.2f} s")
     elif r.method:
         out.append(f"  states:     {r.states} explored ({r.method}"
                    f"{'' if r.complete else ', incomplete'}), {r.edges} firings, depth "
-                   f"{r.depth}, {r.seconds:.2f} s")
+                   f"{r.depth}{also}, {r.seconds:.2f} s")
     else:
-        out.append(f"  states:     none explored (no search ran), {r.seconds:.2f} s")
+        out.append(f"  states:     none explored (no search ran){also}, {r.seconds:.2f} s")
     out.append("  limits:     " + _limits_text(r))
     if r.simulation is not None:
         out.append(f"  simulation: {r.simulation.text}")

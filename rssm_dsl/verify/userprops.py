@@ -441,13 +441,13 @@ def _judge(net: FlatNet, prop: Property, formulas: list[Formula], ex: _Explored,
                                   f"not decided: a violation found in {where} was not "
                                   f"reproduced in the whole net ({e})", prop.span)
         return PropertyResult(prop.name, prop.kind, _text(prop), False, cx,
-                              f"violated ({states})", prop.span)
+                              f"violated ({states})", prop.span, graph.size)
     if unknown.any():
         return PropertyResult(prop.name, prop.kind, _text(prop), None, None,
                               f"not decided: it reads a value the verifier does not track "
-                              f"in {int(unknown.sum()):,} of {states}", prop.span)
+                              f"in {int(unknown.sum()):,} of {states}", prop.span, graph.size)
     return PropertyResult(prop.name, prop.kind, _text(prop), True, None, f"holds ({states})",
-                          prop.span)
+                          prop.span, graph.size)
 
 
 def _confirm_with_values(net: FlatNet, sl: Slice, plan: ValuePlan, budget: Budget,

@@ -394,3 +394,17 @@ def test_q_is_lost_for_good_only_when_nothing_it_reads_can_move() -> None:
     goal = Formula(comp.system, prop.expressions[1])
     start = frozenset(whole.net.initial)
     assert _lost_for_good(net, whole.net, start, whole.raw(start), goal) is False
+
+
+def test_the_states_line_counts_the_properties_explorations() -> None:
+    """The report's `states:` line gives the largest exploration a property needed (a
+    trial's report said "none explored" beside 591,851 property states); each property's
+    JSON has its own count."""
+    from rssm_dsl.verify import render_text
+
+    net, plan = _compiled("hub_stops.rssm")
+    r = verify(net, VerifyOptions(values=plan, time_limit=60))  # type: ignore[arg-type]
+    most = max(p.states for p in r.user_properties)
+    assert most > 0 and all(p.to_json()["states"] == p.states for p in r.user_properties)
+    [line] = [x for x in render_text(r).splitlines() if x.startswith("  states:")]
+    assert f"the properties: {most:,} states at most" in line
