@@ -523,18 +523,19 @@ def _confirm_response_with_values(net: FlatNet, ex: _Explored, plan: ValuePlan,
                    and not inside.intersection(whole.raw(marks[i]))), None)
         if at is None:
             continue
+        # the rest of the system runs on, everyone in turn, with the values (a cycle of
+        # the net without them may not be one of the system: a counter would overflow)
         try:
-            tail, around, _ = run_outside(net, end, frozenset())
+            tail, around, _ = run_outside(whole.net, node.marking, frozenset())
         except ReplayError:         # no cycle found soon: the lasso ends where Q is lost
             tail, around = [], []
-        after = fire_steps(net, end, tail)
+        after = fire_steps(whole.net, node.marking, tail)
         return Counterexample(
             "property", whole.steps(path[:at]), marking_labels(net, whole.raw(marks[at])),
-            subsystem=prop.name,
-            to_cycle=(*whole.steps(path[at:]), *(net.transitions[t] for t in tail)),
-            cycle=tuple(net.transitions[t] for t in around),
-            cycle_marking=marking_labels(net, after) if around else (),
-            values=whole.values(path))
+            subsystem=prop.name, to_cycle=whole.steps([*path[at:], *tail]),
+            cycle=whole.steps(around),
+            cycle_marking=marking_labels(net, whole.raw(after)) if around else (),
+            values=whole.values([*path, *tail, *around]))
     return None
 
 
