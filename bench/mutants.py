@@ -220,6 +220,13 @@ MUTANTS = (
            "rssm_dsl/verify/userprops.py",
            "        if f\"channel {c.name}\" in tracked:\n            return True\n",
            "        if False:\n            return True\n"),
+    Mutant("slice-values-of-every-condition",
+           "a property's slice holds the producers of the values any condition of the whole "
+           "net reads, not only its own subsystems' (a fleet's coordinator brings in every "
+           "robot)",
+           "rssm_dsl/verify/valuenet.py",
+           "                and (within is None or net.transitions[u].subsystem in within)\n",
+           "                and (within is None or True)\n"),
     Mutant("slice-response-lost-moving-fixed",
            "Q is taken as lost for good though a subsystem it reads can still move",
            "rssm_dsl/verify/userprops.py",

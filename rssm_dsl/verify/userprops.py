@@ -89,7 +89,7 @@ from rssm_dsl.verify.slicing import (
 )
 from rssm_dsl.verify.statespace import Graph, SearchResult, explore_full
 from rssm_dsl.verify.stubborn import explore_reduced
-from rssm_dsl.verify.valuenet import track_values
+from rssm_dsl.verify.valuenet import track_values, tracked_labels
 
 
 def check_properties(net: FlatNet, system: System, plan: ValuePlan | None,
@@ -246,42 +246,52 @@ def property_subsystems(net: FlatNet, prop: Property, formulas: list[Formula],
     mentioned = {a.subsystem_id for f in formulas for a in f.atoms}
     keys = frozenset(f"{a.subsystem_id}.{a.variable_name}" for f in formulas
                      for a in f.atoms if isinstance(a, Value))
-    tracked = _tracked(net, plan, keys)
     ends: dict[str, bool] = {}
+    # the guards of the set decide which values it needs fed: grown to a fixpoint, so that
+    # a coordinator reading every robot brings in only the robots whose values its guards
+    # (and those of the robots already in) depend on
+    keep: tuple[str, ...] = tuple(sorted(mentioned))
+    while True:
+        tracked = _tracked(net, plan, keys, keep)
 
-    def feeds(c: Channel) -> bool:
-        if f"channel {c.name}" in tracked:
-            return True
-        if prop.kind != "response" or c.producer is None:
-            return False
-        if c.producer not in ends:
-            ends[c.producer] = _may_end(net, c.producer)
-        return ends[c.producer]
+        def feeds(c: Channel, tracked: frozenset[str] = tracked) -> bool:
+            if f"channel {c.name}" in tracked:
+                return True
+            if prop.kind != "response" or c.producer is None:
+                return False
+            if c.producer not in ends:
+                ends[c.producer] = _may_end(net, c.producer)
+            return ends[c.producer]
 
-    return wait_closure(net, mentioned, feeds)
+        grown = wait_closure(net, mentioned, feeds)
+        if set(grown) <= set(keep):
+            return grown
+        keep = tuple(sorted(set(keep) | set(grown)))
 
 
-def _tracked(net: FlatNet, plan: ValuePlan | None, keys: frozenset[str]) -> frozenset[str]:
+def _tracked(net: FlatNet, plan: ValuePlan | None, keys: frozenset[str],
+             within: Sequence[str]) -> frozenset[str]:
     """The values (``channel NAME``, ``SUB.NAME``) tracked in ``net`` for the property
-    values ``keys`` and the conditions (valuenet.py)."""
+    values ``keys`` and the conditions of the subsystems ``within`` (valuenet.py)."""
     if plan is None:
         return frozenset()
-    key = (id(net), id(plan), keys)
+    key = (id(net), id(plan), keys, tuple(within))
     hit = _TRACKED.get(key)
     if hit is None or hit[0] is not net:
-        if len(_TRACKED) > 32:
+        if len(_TRACKED) > 64:
             _TRACKED.clear()
-        hit = _TRACKED[key] = (net, frozenset(track_values(track_new(net), plan, keys).values))
+        hit = _TRACKED[key] = (net, tracked_labels(track_new(net), plan, keys, within))
     return hit[1]
 
 
-_TRACKED: dict[tuple[int, int, frozenset[str]], tuple[FlatNet, frozenset[str]]] = {}
+_TRACKED: dict[tuple[int, int, frozenset[str], tuple[str, ...]],
+               tuple[FlatNet, frozenset[str]]] = {}
 
 
 def _fed_values(net: FlatNet, sl: Slice, plan: ValuePlan,
                 batch: list[tuple[Property, list[Formula]]]) -> bool:
-    """Does a channel from outside ``sl`` into it carry a value the whole net tracks (for
-    these properties), or come from a producer that can end? The slice's environment writes
+    """Does a channel from outside ``sl`` into it carry a value the whole net tracks for
+    these properties and the slice's conditions, or come from a producer that can end? The slice's environment writes
     any value there, at any time, the whole net only what its producer computes, while it
     runs."""
     inbound = [c for c in channels(net) if c.consumer in sl.keep and c.producer not in sl.keep]
@@ -293,7 +303,8 @@ def _fed_values(net: FlatNet, sl: Slice, plan: ValuePlan,
         return True
     keys = frozenset(f"{a.subsystem_id}.{a.variable_name}" for _, fs in batch for f in fs
                      for a in f.atoms if isinstance(a, Value))
-    tracked = set(track_values(track_new(net), plan, keys).values)
+    # a value only the conditions outside the slice depend on changes nothing inside it
+    tracked = _tracked(net, plan, keys, tuple(s for s in net.subsystems if s in sl.keep))
     return any(f"channel {c.name}" in tracked for c in inbound)
 
 
@@ -331,7 +342,7 @@ def _explore(net: FlatNet, keep: tuple[str, ...], formulas: list[Formula],
     sl = None
     if set(keep) != set(net.subsystems) and keep:
         # the border's channels whose value nothing here reads are dropped (slice_net)
-        read = _tracked(net, plan, keys)
+        read = _tracked(net, plan, keys, keep)
         sl = slice_net(net, keep, quiet=[c.name for c in channels(net)
                                          if f"channel {c.name}" not in read],
                        uncut=[c.name for c in channels(net) if f"channel {c.name}" in read])

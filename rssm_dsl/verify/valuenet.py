@@ -30,7 +30,7 @@ from __future__ import annotations
 
 import dataclasses
 import itertools
-from collections.abc import Mapping
+from collections.abc import Collection, Mapping
 from typing import Any
 
 from rssm_dsl.hpn.flat import FlatNet, FlatPlace, FlatTransition
@@ -82,11 +82,14 @@ class _Values:
                 out.add(slot)
         return out
 
-    def cone(self, present: set[str], extra: frozenset[str] = frozenset()) -> set[str]:
+    def cone(self, present: set[str], extra: frozenset[str] = frozenset(),
+             within: Collection[str] | None = None) -> set[str]:
         """The values the guards (and ``extra``) depend on, directly or through what is
-        computed from them."""
-        want = {r for s in self.steps.values() if s.holds is not None for r in s.reads
-                if r in present} | (extra & present)
+        computed from them; only the guards of the subsystems ``within`` when given."""
+        net = self.t.net
+        want = {r for u, s in self.steps.items() if s.holds is not None
+                and (within is None or net.transitions[u].subsystem in within)
+                for r in s.reads if r in present} | (extra & present)
         writers: dict[str, list[Step]] = {}
         for s in self.steps.values():
             for w in s.writes:
@@ -210,6 +213,15 @@ def track_values(t: TrackedNet, plan: ValuePlan | None,
     return TrackedNet(out, t.source, tuple(origin), tuple(place_origin), tracked, free, combos,
                       tuple(sorted(plan.vars[k].label for k in cone)),
                       {k: c for k, c in chosen.items() if c})
+
+
+def tracked_labels(t: TrackedNet, plan: ValuePlan, extra: frozenset[str],
+                   within: Collection[str]) -> frozenset[str]:
+    """The labels of the values :func:`track_values` would track in ``t`` for ``extra``
+    if only the guards of the subsystems ``within`` counted: what a slice of them needs
+    from outside."""
+    v = _Values(t, plan)
+    return frozenset(plan.vars[k].label for k in v.cone(v.present(), extra, within))
 
 
 def _show(d: Any) -> str:

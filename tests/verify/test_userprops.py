@@ -23,10 +23,11 @@ from netkit import NetBuilder, random_product
 from rssm_dsl.hpn.flat import FlatNet
 from rssm_dsl.hpn.flatten import flatten
 from rssm_dsl.pipeline import compile_file
+from rssm_dsl.semantics.model import System
 from rssm_dsl.semantics.properties import InBehaviour
 from rssm_dsl.source import Span
 from rssm_dsl.verify import VerifyOptions, verify
-from rssm_dsl.verify.dataplan import value_plan
+from rssm_dsl.verify.dataplan import ValuePlan, value_plan
 from rssm_dsl.verify.invariants import place_invariants
 from rssm_dsl.verify.netbits import NetBits, to_mask
 from rssm_dsl.verify.progress import backward_closure
@@ -62,7 +63,7 @@ def _compiled(name: str) -> tuple[FlatNet, object]:
 @pytest.mark.parametrize("name", sorted(TABLE))
 def test_property_verdicts_under_every_reduction(name: str, reduction: str) -> None:
     net, plan = _compiled(name)
-    r = verify(net, VerifyOptions(time_limit=120, values=plan,  # type: ignore[arg-type]
+    r = verify(net, VerifyOptions(time_limit=120, values=plan,
                                   reduction=reduction))
     verdict, expected = TABLE[name]
     assert {p.name: p.holds for p in r.user_properties} == expected, \
@@ -95,7 +96,7 @@ def test_the_violation_needs_both_agents_interleaved() -> None:
     """The two-subsystem spec's `always` violation is found by stubborn sets only with the
     atoms' transitions visible (with none visible they run one agent through its window)."""
     net, plan = _compiled("two_subsystems_props.rssm")
-    r = verify(net, VerifyOptions(time_limit=60, values=plan,  # type: ignore[arg-type]
+    r = verify(net, VerifyOptions(time_limit=60, values=plan,
                                   reduction="on"))
     holds = {p.name: p.holds for p in r.user_properties}
     assert holds["never_open_and_lit"] is False
@@ -335,7 +336,7 @@ def test_a_property_is_checked_on_what_its_subsystems_wait_on() -> None:
             assert cx is not None and cx.to_cycle
             assert any("k.c switches from run to the end" in t.label for t in
                        (*cx.steps, *cx.to_cycle))
-    r = verify(net, VerifyOptions(values=plan, time_limit=60))  # type: ignore[arg-type]
+    r = verify(net, VerifyOptions(values=plan, time_limit=60))
     assert {p.name: p.holds for p in r.user_properties} == expected
     assert r.verdict is Verdict.VIOLATED and r.deadlock_free     # log.c runs on
     assert {c.subsystem for c in r.progress} | set(r.progress_lost) == {"hub.c", "r1.c",
@@ -403,8 +404,55 @@ def test_the_states_line_counts_the_properties_explorations() -> None:
     from rssm_dsl.verify import render_text
 
     net, plan = _compiled("hub_stops.rssm")
-    r = verify(net, VerifyOptions(values=plan, time_limit=60))  # type: ignore[arg-type]
+    r = verify(net, VerifyOptions(values=plan, time_limit=60))
     most = max(p.states for p in r.user_properties)
     assert most > 0 and all(p.to_json()["states"] == p.states for p in r.user_properties)
     [line] = [x for x in render_text(r).splitlines() if x.startswith("  states:")]
     assert f"the properties: {most:,} states at most" in line
+
+
+def _flags_own() -> tuple[FlatNet, ValuePlan, System]:
+    comp = compile_file(SPECS / "flags_own.rssm")
+    assert comp.hpn is not None and comp.system is not None
+    net = flatten(comp.hpn)
+    return net, value_plan(comp, net), comp.system
+
+
+FLAGS_OWN = {"r1_gets_work": True, "r2_gets_work": False}
+
+
+def test_a_property_slice_holds_only_the_producers_its_own_conditions_need() -> None:
+    """flags_own: hub.c reads a flag of each robot; the job it sends r1.c is computed from
+    r1's flag, the one it sends r2.c from r3's. r1's property is checked on hub.c and r1.c
+    (hub.c's own conditions read no flag, and r2's and r3's flags feed only values sent
+    outside the slice), r2's on hub.c, r2.c and r3.c (r2.c's condition reads a value
+    computed from r3's flag): a slice with every robot is what the whole net's conditions
+    would ask, one without r3.c would let its environment give r2 work. The verdicts are
+    the author's: r1 gets work, r2 (once r3's flag is in) never again (the whole net's
+    too: the long case below)."""
+    from rssm_dsl.semantics.properties import Formula
+    from rssm_dsl.verify.budget import Budget
+    from rssm_dsl.verify.userprops import check_properties, property_subsystems
+
+    net, plan, system = _flags_own()
+    where = {p.name: set(property_subsystems(net, p, [Formula(system, e)
+                                                      for e in p.expressions], plan))
+             for p in system.properties}
+    assert where == {"r1_gets_work": {"hub.c", "r1.c"},
+                     "r2_gets_work": {"hub.c", "r2.c", "r3.c"}}
+    got = check_properties(net, system, plan, Budget(120, None), 2_000_000)
+    assert {p.name: p.holds for p in got} == FLAGS_OWN, [p.why for p in got]
+    assert all("the slice of" in p.why for p in got), [p.why for p in got]
+
+
+@pytest.mark.long
+def test_flags_own_on_the_whole_net() -> None:
+    """The whole net of flags_own (1.4 M states under stubborn sets, about a minute)
+    gives the verdicts its slices give."""
+    from rssm_dsl.verify.budget import Budget
+    from rssm_dsl.verify.userprops import check_properties
+
+    net, plan, system = _flags_own()
+    got = check_properties(net, system, plan, Budget(600, None), 4_000_000,
+                           sliced=False)
+    assert {p.name: p.holds for p in got} == FLAGS_OWN, [p.why for p in got]
