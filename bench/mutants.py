@@ -227,6 +227,12 @@ MUTANTS = (
            "rssm_dsl/verify/valuenet.py",
            "                and (within is None or net.transitions[u].subsystem in within)\n",
            "                and (within is None or True)\n"),
+    Mutant("slice-env-new-free",
+           "a property's slice leaves new(x) of what its environment feeds a free choice, so "
+           "its paths copy readings never received and do not replay in the whole net",
+           "rssm_dsl/verify/slicing.py",
+           "    free = set() if env_new else {",
+           "    free = set() if False else {"),
     Mutant("slice-response-lost-moving-fixed",
            "Q is taken as lost for good though a subsystem it reads can still move",
            "rssm_dsl/verify/userprops.py",

@@ -179,7 +179,8 @@ class Slice:
 
 
 def slice_net(net: FlatNet, keep: Sequence[str], cut: bool = True,
-              quiet: Collection[str] = (), uncut: Collection[str] = ()) -> Slice:
+              quiet: Collection[str] = (), uncut: Collection[str] = (),
+              env_new: bool = False) -> Slice:
     """The slice of ``net`` for the group ``keep`` (the module docstring); with ``cut``
     false, the free channels inside the group are kept whole (both ends and the value they
     carry as in the whole net) instead of cut, each end with its own environment.
@@ -191,7 +192,14 @@ def slice_net(net: FlatNet, keep: Sequence[str], cut: bool = True,
     free choice anyway), so the group can do what it could with them, and no more than a
     stuttering of it; each place dropped halves the slice's markings. ``uncut`` names free
     channels inside the group kept whole even when ``cut`` (the values they carry are read:
-    cut, the consumer's environment would send any value)."""
+    cut, the consumer's environment would send any value).
+
+    new(x) of an input the environment feeds is a free choice, or with ``env_new`` tracked
+    as in the whole net: set by a receive that takes what the environment wrote. Both cover
+    the whole net (the environment can fill the channel whenever its producer does, and a
+    dropped channel's receive may take or find nothing at any time); tracked, a data case
+    of the slice's path fires only after a receive, as it does in the whole net, so the
+    path replays there with the producer sending (the properties' slices, userprops.py)."""
     group = frozenset(keep)
     quiet_chans = [c for c in channels(net) if c.name in quiet and _quiet(c, group)]
     gone = {p.index for p in net.places if p.subsystem is not None and p.subsystem not in group}
@@ -260,8 +268,8 @@ def slice_net(net: FlatNet, keep: Sequence[str], cut: bool = True,
     # new(x) of an input the environment feeds is a free choice: the environment may have
     # written any number of times since the last use, or not at all
     from_env = {c.name for c in (*border, *inner, *quiet_chans) if c.consumer in group}
-    free = {(sub, k) for t, sub, k in sites.receives
-            if sub in group and net.transitions[t].channel in from_env}
+    free = set() if env_new else {(sub, k) for t, sub, k in sites.receives
+                                  if sub in group and net.transitions[t].channel in from_env}
     new_sites = NewSites(
         inputs=tuple(x for x in sites.inputs if x[0] in group),
         receives=tuple((t_index[t], s, k) for t, s, k in sites.receives if t in t_index),

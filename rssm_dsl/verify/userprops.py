@@ -3,10 +3,12 @@ eventually Q`; docs/language.md, "Properties"), checked on the reachable states.
 
 Where: the slice (slicing.py) of the subsystems a property mentions, what they wait on
 (``property_subsystems``: the producers they receive from blocking and the consumers they
-send to blocking, and so on) and the producers of the values it tracks (for a response
-property also those that can end); the whole net when that is all of it. new(x) and the
-values the property and the conditions read are tracked (datanet.py, valuenet.py). The
-border channels whose value nothing there reads are dropped (``slice_net(quiet=...)``).
+send to blocking, and so on) and the producers of the values the property and the
+conditions of those subsystems read, grown to a fixpoint (for a response property also the
+producers that can end); the whole net when that is all of it. new(x) (of the inputs the
+slice's environment feeds too: ``slice_net(env_new=True)``) and the values the property and
+the conditions read are tracked (datanet.py, valuenet.py). The border channels whose value
+nothing there reads are dropped (``slice_net(quiet=...)``).
 Nothing in the slice waits on anything outside it, so the slice can do all its subsystems
 can do in the whole net, and their moves replay in the whole net with the rest standing
 still (the argument the progress check rests on): a property of those subsystems holds in
@@ -345,7 +347,8 @@ def _explore(net: FlatNet, keep: tuple[str, ...], formulas: list[Formula],
         read = _tracked(net, plan, keys, keep)
         sl = slice_net(net, keep, quiet=[c.name for c in channels(net)
                                          if f"channel {c.name}" not in read],
-                       uncut=[c.name for c in channels(net) if f"channel {c.name}" in read])
+                       uncut=[c.name for c in channels(net) if f"channel {c.name}" in read],
+                       env_new=True)
     base = sl.net if sl is not None else net
     tracked = track_values(track_new(base), plan, keys)
     nb = NetBits.of(tracked.net)

@@ -227,3 +227,22 @@ def test_a_response_lost_by_one_choice_is_violated_and_replays(tmp_path: Path) -
     assert any("end" in s["label"] for s in cx["to_cycle"])      # a.c ends on the way
     code, out = replay(COIN, path)
     assert code == 1 and out["replay"]["reproduced"] is True, out["replay"]
+
+
+BEAM_RELAY = ROOT / "tests" / "verify" / "specs" / "beam_relay.rssm"
+
+
+def test_a_response_violated_on_a_slice_fed_by_a_device_replays(tmp_path: Path) -> None:
+    """beam_relay: `stops_then_feeds` is violated on the slice of the conveyor and the relay,
+    the light barrier its environment; the lasso has the barrier send a reading the relay
+    receives and copies (new(blocked)), and the interpreter, fed the recorded values,
+    reproduces it."""
+    path = tmp_path / "report.json"
+    r = rssmc("verify", BEAM_RELAY, "--format", "json")
+    assert r.returncode == 1, r.stderr
+    path.write_text(r.stdout, encoding="utf-8")
+    report = json.loads(r.stdout)
+    assert {p["name"]: p["holds"] for p in report["user_properties"]} == {
+        "stops_then_feeds": False}
+    code, out = replay(BEAM_RELAY, path)
+    assert code == 1 and out["replay"]["reproduced"] is True, out["replay"]

@@ -25,10 +25,9 @@ A second trial (2026-11-29):
 - pick_place: a conveyor and an arm in a four-phase handshake, devices, three properties:
   VERIFIED (about ten seconds; a long case);
 - pick_place_bug: the arm ends after grasping a defective part while the conveyor waits:
-  conveyor.c loses progress; two properties hold, and `arm_returns`, violated by the
-  author's reckoning, is violated on its slice and left open (the slice's path does not
-  replay in the whole net with the values, and the whole net is not explored in time; a
-  long case, about 30 s).
+  conveyor.c loses progress; two properties hold, and `arm_returns` is violated, the
+  author's verdict (found on its slice, where new(part_here's reading) is set by the light
+  barrier's relay as in the whole net, and replayed there with the values; a long case).
 
 A third trial (2026-11-29):
 
@@ -83,7 +82,7 @@ TABLE: dict[str, tuple[str, bool, set[str], dict[str, bool]]] = {
     "pick_place": ("VERIFIED", True, set(), {
         "no_grasp_on_moving_belt": True, "belt_restarts": True, "arm_returns": True}),
     "pick_place_bug": ("VIOLATED", True, {"conveyor.c"}, {
-        "no_grasp_on_moving_belt": True, "belt_restarts": True}),
+        "no_grasp_on_moving_belt": True, "belt_restarts": True, "arm_returns": False}),
     "pickup": ("VERIFIED", True, set(), {
         "no_grasp_while_driving": True, "dock_released": True, "grasp_completes": True}),
     "pickup_bug": ("VIOLATED", True, {"base.c"}, {

@@ -456,3 +456,29 @@ def test_flags_own_on_the_whole_net() -> None:
     got = check_properties(net, system, plan, Budget(600, None), 4_000_000,
                            sliced=False)
     assert {p.name: p.holds for p in got} == FLAGS_OWN, [p.why for p in got]
+
+
+def test_a_slice_tracks_new_of_what_its_environment_feeds() -> None:
+    """beam_relay: the relay copies a reading only under `case new(blocked)`. In the
+    property's slice (the conveyor and the relay; the light barrier its environment)
+    new(blocked) is set by the relay's receive, as in the whole net, so the slice's lasso
+    (hold -> end) is one the whole net takes: the relay receives before it copies, and the
+    violation is confirmed on the slice (a free new(blocked) let the slice copy a reading
+    never received, whose path the whole net cannot take)."""
+    from rssm_dsl.verify.slicing import slice_net
+
+    net, plan = _compiled("beam_relay.rssm")
+    keep = ["conveyor.c", "conveyor.r.beam"]
+    inputs = dict(slice_net(net, keep).net.new_sites.inputs)
+    k = inputs["conveyor.r.beam"].index("blocked")
+    assert ("conveyor.r.beam", k) in slice_net(net, keep).net.new_sites.free
+    assert not slice_net(net, keep, env_new=True).net.new_sites.free
+    r = verify(net, VerifyOptions(values=plan))  # type: ignore[arg-type]
+    [p] = r.user_properties
+    assert p.holds is False and "the slice of conveyor.c, conveyor.r.beam" in p.why, p.why
+    cx = p.counterexample
+    assert cx is not None
+    labels = [t.label for t in (*cx.steps, *cx.to_cycle)]
+    took = next(i for i, x in enumerate(labels) if "takes new blocked" in x)
+    copied = next(i for i, x in enumerate(labels) if "computes part_here when new(blocked)" in x)
+    assert took < copied < next(i for i, x in enumerate(labels) if "ends [present]" in x)
