@@ -590,5 +590,9 @@ def _conditions_text(r: VerifyReport) -> list[str]:
     if r.free_conditions:
         out.append(f"  abstracted as free choices (every outcome explored): "
                    f"{len(r.free_conditions)}")
+        if r.user_properties:
+            out.append("  (for safeness, deadlocks and progress; the properties are checked "
+                       "with the values their slices' conditions read tracked where they "
+                       "can be)")
         out += [f"    {c.text()}" for c in r.free_conditions]
     return out
