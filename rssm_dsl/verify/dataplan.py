@@ -143,6 +143,45 @@ def _truth(fn: Callable[[dict[str, Any]], Any], env: dict[str, Any]) -> bool | N
     return v if type(v) is bool else None
 
 
+def _kleene(compile_expr: Callable[[ast.Expr], Callable[[dict[str, Any]], Any]], e: ast.Expr,
+            depth: int = 0) -> Callable[[dict[str, Any]], Any]:
+    """``e`` compiled so that `and`, `or` and `not` take what is known of each side (Kleene's
+    three values): an unknown side does not hide a false one under `and`, or a true one
+    under `or`, whichever side it is on. The interpreter's code evaluates `a and b` from
+    the left, so an untracked `a` made `a and false` unknown, a free choice, while `false
+    and a` was false (a condition's operands in another order gave another verdict).
+    Deeper than ``KLEENE_DEPTH``, the expression is compiled as it is."""
+    if depth < KLEENE_DEPTH and isinstance(e, ast.Binary) and e.op in ("and", "or"):
+        left = _kleene(compile_expr, e.left, depth + 1)
+        right = _kleene(compile_expr, e.right, depth + 1)
+        decides = e.op == "or"          # the value of one side that decides the whole
+
+        def both(env: dict[str, Any]) -> bool:
+            a = _truth(left, env)
+            if a is decides:
+                return decides
+            b = _truth(right, env)
+            if b is decides:
+                return decides
+            if a is None or b is None:
+                raise _UnknownValue
+            return not decides
+        return both
+    if depth < KLEENE_DEPTH and isinstance(e, ast.Unary) and e.op == "not":
+        inner = _kleene(compile_expr, e.operand, depth + 1)
+
+        def negated(env: dict[str, Any]) -> bool:
+            v = _truth(inner, env)
+            if v is None:
+                raise _UnknownValue
+            return not v
+        return negated
+    return compile_expr(e)
+
+
+KLEENE_DEPTH = 64
+
+
 def _stmt_names(stmts: Iterable[ast.Stmt]) -> set[str]:
     """The names statements read, and the variables they assign (a partial write keeps the
     rest of the value)."""
@@ -189,7 +228,7 @@ class _Sub:
     def condition(self, c: Condition) -> Callable[[dict[str, Any]], Any]:
         fn = self._conds.get(c.name)
         if fn is None:
-            fn = self._conds[c.name] = self.compiler.expr(c.expr)
+            fn = self._conds[c.name] = _kleene(self.compiler.expr, c.expr)
         return fn
 
 
@@ -381,8 +420,8 @@ class _Planner:
                           {c.name: special(c.name) for c in source.conditions})
         sc.extra_symbols = {c.name: Symbol("condition", BOOL, c.span)
                             for c in source.conditions}
-        own = sc.expr(sw.condition) if sw.condition is not None else None
-        others = [sc.expr(x) for x in earlier]
+        own = _kleene(sc.expr, sw.condition) if sw.condition is not None else None
+        others = [_kleene(sc.expr, x) for x in earlier]
         exprs = [*earlier, *([sw.condition] if sw.condition is not None else [])]
         used = {n.name for e in exprs for n in names(e)}
         if used & cond_fns.keys():

@@ -222,3 +222,35 @@ def test_state_invariants_of_the_handover_on_its_slice(tmp_path: Path) -> None:
     places = [net.places[p] for p in marking]
     assert any(p.subsystem == "arm.c" and p.behaviour == "release" for p in places)
     assert any(p.subsystem == "base.c" and p.behaviour == "dock" for p in places)
+
+
+AND_ORDER = ROOT / "tests" / "verify" / "specs" / "and_order.rssm"
+# the guard of b.c's switch to `bad`, where occ (a device's reading) is not tracked and x
+# (sent by a.c) is always false: what the verifier must answer, each side on either side
+GUARDS = {
+    "occ and x": Verdict.VERIFIED,
+    "x and occ": Verdict.VERIFIED,
+    "not (not occ or not x)": Verdict.VERIFIED,
+    "occ and (x or false)": Verdict.VERIFIED,
+    "occ or x": Verdict.VIOLATED,          # occ may be true: a free choice
+    "occ and not x": Verdict.VIOLATED,
+    "not x or occ": Verdict.VIOLATED,
+}
+
+
+@pytest.mark.parametrize("guard", sorted(GUARDS))
+def test_an_unknown_side_does_not_hide_a_known_one(guard: str, tmp_path: Path) -> None:
+    """A condition's `and`, `or` and `not` take what is known of each side, whichever side it
+    is on (Kleene's three values): `occ and x` with x false is false though occ is not
+    tracked. Before, the left side was evaluated first, as the interpreter does, an
+    untracked left side made the whole condition a free choice, and `occ and x` was
+    VIOLATED where `x and occ` was VERIFIED (the fourth acceptance trial's drone)."""
+    text = AND_ORDER.read_text(encoding="utf-8").replace("terminal go when occ and x",
+                                                         f"terminal go when {guard}")
+    spec = tmp_path / "and_order.rssm"
+    spec.write_text(text, encoding="utf-8")
+    comp = compile_file(spec)
+    assert comp.ok and comp.hpn is not None, comp.diagnostics
+    net = flatten(comp.hpn)
+    r = verify(net, VerifyOptions(values=value_plan(comp, net)))
+    assert r.verdict is GUARDS[guard], (guard, [p.why for p in r.user_properties])
