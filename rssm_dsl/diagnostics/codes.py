@@ -75,6 +75,9 @@ CODES: tuple[Code, ...] = (
     Code("E308", "device-kind-mismatch", _E, "a device instance of the wrong kind"),
     Code("E309", "wrong-direction-word", _E, "an input names its peer with `to` or an output with `from`"),
     Code("E310", "unknown-device-parameter", _E, "an instance gives a parameter its device type does not declare"),
+    Code("E311", "unknown-agent-definition", _E, "an agent instance names no agent definition"),
+    Code("E312", "bad-agent-argument", _E, "an agent instance's arguments do not fit its definition's parameters"),
+    Code("E313", "bad-instance-range", _E, "an indexed agent line declares no agent or too many"),
     # canonical decomposition
     Code("E401", "write-outside-target", _E, "a partial function writes outside its own target"),
     Code("E402", "write-to-input", _E, "an input buffer is written"),

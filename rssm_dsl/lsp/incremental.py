@@ -166,6 +166,8 @@ def reparse(state: State, text: str, display: str,
     if len(systems) != 1:
         return None
     sd = systems[0]
+    if sd.instances or any(isinstance(d, ast.AgentDef) for d in state.module.decls):
+        return None     # an agent's edit may change its instances' agents: all of it anew
     shifts = state.shifts
     found = _edited_agent(sd, shifts, old, a, old_end)
     if found is None:

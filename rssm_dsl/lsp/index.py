@@ -38,6 +38,7 @@ from pathlib import Path
 
 from rssm_core.records import dataclass
 from rssm_dsl.lsp.positions import line_start
+from rssm_dsl.semantics.instances import definition_agent
 from rssm_dsl.semantics.loader import Program, _candidates, display_path
 from rssm_dsl.semantics.typecheck import BUILTIN_CONSTS, BUILTIN_FUNCTIONS
 from rssm_dsl.source import SourceFile, Span
@@ -257,6 +258,9 @@ class IndexBuilder:
         self.index = SymbolIndex(definitions=dict(known) if known is not None else {})
         self.globals: dict[str, str] = {}           # global name -> key
         self.device_types: dict[str, ast.DeviceDecl] = {}
+        self.agent_defs: dict[str, ast.AgentDef] = {}
+        self.def_agents: dict[str, ast.AgentDecl] = {}     # each as an agent (its text)
+        self.alias: dict[tuple[str, int], str] = {}    # a definition's parameter, by its name
         # what the record fields of an expression's value need: declared types by name,
         # the declared type of each variable's key, and the values of untyped constants
         self.type_decls: dict[str, ast.RecordDecl | ast.AliasDecl | ast.EnumDecl] = {}
@@ -338,29 +342,47 @@ class IndexBuilder:
                         f"extern {d.name}({params}) -> {_type_text(d.result)} "
                         f"= \"{d.binding}\""))
                 case ast.DeviceDecl():
-                    key = f"device:{d.name}"
-                    self.device_types[d.name] = d
-                    self.define(Definition(key, d.name, f"device type (real {d.kind.value})",
-                                           d.name_span, d.span,
-                                           f"device {d.kind.value} {d.name}"))
-                    for b in d.buffers:
-                        self.declared.setdefault(f"devbuf:{d.name}.{b.name}", b.type)
-                        self.define(Definition(f"devbuf:{d.name}.{b.name}", b.name,
-                                               f"{b.direction.value} buffer of a device",
-                                               b.name_span, b.span, _buffer_detail(b), key))
-                    for p in d.params:
-                        self.declared.setdefault(f"devparam:{d.name}.{p.name}", p.type)
-                        self.define(Definition(f"devparam:{d.name}.{p.name}", p.name,
-                                               "device parameter", p.name_span, p.span,
-                                               f"param {p.name}: {_type_text(p.type)}", key))
+                    self._device_type(d)
+                case ast.AgentDef():
+                    self._agent_def(d)
                 case ast.SystemDecl():
                     self._system(d)
             name = getattr(d, "name", None)
             if isinstance(name, str) and not isinstance(d, ast.SystemDecl):
                 prefix = {ast.RecordDecl: "type", ast.AliasDecl: "type", ast.EnumDecl: "type",
                           ast.ConstDecl: "const",
-                          ast.ExternDecl: "extern", ast.DeviceDecl: "device"}[type(d)]
+                          ast.ExternDecl: "extern", ast.DeviceDecl: "device",
+                          ast.AgentDef: "agentdef"}[type(d)]
                 self.globals.setdefault(name, f"{prefix}:{name}")
+
+    def _device_type(self, d: ast.DeviceDecl) -> None:
+        key = f"device:{d.name}"
+        self.device_types[d.name] = d
+        self.define(Definition(key, d.name, f"device type (real {d.kind.value})", d.name_span,
+                               d.span, f"device {d.kind.value} {d.name}"))
+        for b in d.buffers:
+            self.declared.setdefault(f"devbuf:{d.name}.{b.name}", b.type)
+            self.define(Definition(f"devbuf:{d.name}.{b.name}", b.name,
+                                   f"{b.direction.value} buffer of a device", b.name_span,
+                                   b.span, _buffer_detail(b), key))
+        for p in d.params:
+            self.declared.setdefault(f"devparam:{d.name}.{p.name}", p.type)
+            self.define(Definition(f"devparam:{d.name}.{p.name}", p.name, "device parameter",
+                                   p.name_span, p.span, f"param {p.name}: {_type_text(p.type)}",
+                                   key))
+
+    def _agent_def(self, d: ast.AgentDef) -> None:
+        self.agent_defs.setdefault(d.name, d)
+        key = f"agentdef:{d.name}"
+        params = ", ".join(p.name + (": agent" if p.type is None else f": {_type_text(p.type)}")
+                           for p in d.params)
+        self.define(Definition(key, d.name, "agent definition", d.name_span, d.span,
+                               f"agent {d.name}({params})"))
+        for p in d.params:
+            self.define(Definition(
+                f"agentparam:{d.name}.{p.name}", p.name, "agent parameter", p.name_span,
+                p.span, f"{p.name}: " + ("agent" if p.type is None else _type_text(p.type)),
+                key))
 
     def _system(self, sd: ast.SystemDecl) -> None:
         if self.only_agent is None:
@@ -374,17 +396,30 @@ class IndexBuilder:
         """Declarations inside the system: agents, subsystems, instances, their members."""
         for a in sd.agents:
             self._agent_structure(sd, a)
+        for inst in sd.instances:        # `agent r[1..8]: Robot(...)`: r1, ..., r8 there
+            for name in inst.names():
+                self.define(Definition(f"agent:{system_id(sd)}/{name}", name, "agent",
+                                       inst.name_span, inst.span,
+                                       f"agent {name}: {inst.definition}",
+                                       f"system:{system_id(sd)}",
+                                       renameable=inst.lo is None))
         from rssm_dsl.syntax.printer import property_text
         for prop in sd.properties:
             self.define(Definition(f"prop:{system_id(sd)}/{prop.name}", prop.name, "property",
                                    prop.name_span, prop.span, property_text(prop),
                                    f"system:{system_id(sd)}"))
 
-    def _agent_structure(self, sd: ast.SystemDecl, a: ast.AgentDecl) -> None:
-        """The declarations of one agent: its own, its subsystems', its instances'."""
+    def _agent_structure(self, sd: ast.SystemDecl, a: ast.AgentDecl,
+                         container: str | None = None) -> None:
+        """The declarations of one agent: its own, its subsystems', its instances'. Those
+        of an agent definition's text (``container``: the definition's key) have no agent
+        of their own."""
         akey = f"agent:{system_id(sd)}/{a.name}"
-        self.define(Definition(akey, a.name, "agent", a.name_span, a.span,
-                               f"agent {a.name}", f"system:{system_id(sd)}"))
+        if container is None:
+            self.define(Definition(akey, a.name, "agent", a.name_span, a.span,
+                                   f"agent {a.name}", f"system:{system_id(sd)}"))
+        else:
+            akey = container
         for s in a.subsystems:
             skey = subsystem_key(system_id(sd), a.name, s)
             named = s.kind is not ast.SubsystemKind.CONTROL or s.name_span != s.span
@@ -405,6 +440,8 @@ class IndexBuilder:
                                        mem.name_span, mem.span,
                                        f"memory {mem.name}: {_type_text(mem.type)}", skey))
             for p in s.params:
+                if (p.name_span.file, p.name_span.offset) in self.alias:
+                    continue
                 self.declared.setdefault(f"param:{skey[4:]}.{p.name}", p.type)
                 self.define(Definition(f"param:{skey[4:]}.{p.name}", p.name, "parameter",
                                        p.name_span, p.span,
@@ -448,9 +485,86 @@ class IndexBuilder:
                 case ast.SystemDecl():
                     for a in d.agents:
                         self._agent(d, a, src)
+                    self._instances(d, src)
                     for prop in d.properties:
                         for e in prop.expressions:
                             self._property_expr(d, e)
+
+    def _instances(self, sd: ast.SystemDecl, src: SourceFile | None) -> None:
+        """The instance lines (their definition, parameters, the agents they name) and the
+        text of the definitions, indexed as an agent each (a name in a definition is the
+        definition's in every instance)."""
+        sys = system_id(sd)
+        for inst in sd.instances:
+            d = self.agent_defs.get(inst.definition)
+            if d is None:
+                continue
+            self.use(inst.definition_span, f"agentdef:{d.name}")
+            kinds = {p.name: p for p in d.params}
+            for arg in inst.args:
+                p = kinds.get(arg.name)
+                if p is None:
+                    self._expr(arg.value, {})
+                    continue
+                self.use(arg.name_span, f"agentparam:{d.name}.{p.name}")
+                if p.type is None and isinstance(arg.value, ast.Name):
+                    self.use(arg.value.span, f"agent:{sys}/{arg.value.name}")
+                else:
+                    self._expr(arg.value, {}, self._ty(p.type) if p.type else None)
+        for d in self.agent_defs.values():
+            if d.span.file != sd.span.file:
+                continue
+            pseudo = self.def_agents.setdefault(d.name, definition_agent(d))
+            for p in d.params:
+                if p.type is not None:
+                    self.alias[p.name_span.file, p.name_span.offset] = \
+                        f"agentparam:{d.name}.{p.name}"
+                    self.declared.setdefault(f"agentparam:{d.name}.{p.name}", p.type)
+            self._agent_structure(sd, pseudo, f"agentdef:{d.name}")
+            self._agent(sd, pseudo, src)
+            for p in d.params:
+                if p.type is not None:
+                    self._types(p.type)
+
+    def _agent_param(self, a: ast.AgentDecl, name: str, span: Span) -> bool:
+        """Is ``name`` (the first part of a peer of ``a``) a parameter `agent` of the
+        definition ``a`` stands for (`boss.c` in a definition: the agent its instances give
+        `boss`)? Its use is recorded."""
+        d = self.agent_defs.get(a.name)
+        if d is None or self.def_agents.get(a.name) is not a or \
+                not any(p.name == name and p.type is None for p in d.params):
+            return False
+        self.use(span, f"agentparam:{d.name}.{name}")
+        return True
+
+    def _peer_parts(self, peer: ast.PeerRef) -> list[tuple[str, Span]] | None:
+        """Each part of a peer with its span (None when the text is not at hand)."""
+        src = self.source(peer.span)
+        if src is None:
+            return None
+        spans = [src.span(m.start(), m.end()) for m in
+                 _NAME.finditer(src.text, peer.span.offset, peer.span.end_offset)]
+        if len(spans) != len(peer.parts):
+            return None
+        return list(zip(peer.parts, spans, strict=True))
+
+    def _other_agent(self, sd: ast.SystemDecl, name: str) -> ast.AgentDecl | None:
+        """The agent a peer's first part names (an instance's: its definition's text, whose
+        keys its subsystems share), None when it names no agent."""
+        if name in _LETTERS:
+            return None
+        return next((x for x in sd.agents if x.name == name), None) or \
+            self._instance_agent(sd, name)
+
+    def _instance_agent(self, sd: ast.SystemDecl, name: str) -> ast.AgentDecl | None:
+        """The definition (as :func:`definition_agent`) of the instance ``name`` of ``sd``."""
+        for inst in sd.instances:
+            if name in inst.names() and inst.definition in self.agent_defs:
+                d = self.agent_defs[inst.definition]
+                if d.name not in self.def_agents:
+                    self.def_agents[d.name] = definition_agent(d)
+                return self.def_agents[d.name]
+        return None
 
     def _only_agent_uses(self, m: ast.Module, agent: ast.AgentDecl) -> None:
         for d in m.decls:
@@ -836,8 +950,9 @@ class IndexBuilder:
         skey = subsystem_key(system_id(sd), a.name, s)
         base = skey[4:]
         names: dict[str, str] = {}
-        for p in s.params:
-            names[p.name] = f"param:{base}.{p.name}"
+        for p in s.params:      # (a definition's value parameter is the definition's)
+            names[p.name] = self.alias.get((p.name_span.file, p.name_span.offset),
+                                           f"param:{base}.{p.name}")
         for mem in s.memory:
             names[mem.name] = f"mem:{base}.{mem.name}"
         for b in s.buffers:
@@ -942,19 +1057,17 @@ class IndexBuilder:
     def _peer(self, sd: ast.SystemDecl, a: ast.AgentDecl, peer: ast.PeerRef) -> str | None:
         """The uses in a peer reference; the key of what it names (a subsystem, a device
         instance, or the buffer of `PEER.BUFFER`)."""
-        src = self.source(peer.span)
-        if src is None:
+        parts = self._peer_parts(peer)
+        if parts is None:
             return None
-        spans = [src.span(m.start(), m.end()) for m in
-                 _NAME.finditer(src.text, peer.span.offset, peer.span.end_offset)]
-        if len(spans) != len(peer.parts):
-            return None
-        parts = list(zip(peer.parts, spans, strict=True))
-        agents = {x.name: x for x in sd.agents}
         agent = a
-        if parts[0][0] not in _LETTERS and parts[0][0] in agents and len(parts) >= 2:
-            agent = agents[parts[0][0]]
-            self.use(parts[0][1], f"agent:{system_id(sd)}/{agent.name}")
+        named = parts[0][0]
+        if self._agent_param(a, named, parts[0][1]):
+            return None
+        other = self._other_agent(sd, named) if len(parts) >= 2 else None
+        if other is not None:
+            agent = other
+            self.use(parts[0][1], f"agent:{system_id(sd)}/{named}")
             parts = parts[1:]
         letter, letter_span = parts[0]
         if letter not in _LETTERS:

@@ -164,6 +164,10 @@ class _Outline:
         match d:
             case ast.SystemDecl():
                 kids = self.each(d.agents, self.agent)
+                kids += self.each(d.instances, lambda i: self.sym(
+                    i.name if i.lo is None else f"{i.name}[{i.lo}..{i.hi}]", K.Module, i.span,
+                    i.name_span,
+                    f"agent: {i.definition}"))
                 kids += self.each(d.properties, lambda p: self.sym(
                     p.name, K.Property, p.span, p.name_span,
                     "always property" if p.kind == "always"
@@ -186,6 +190,11 @@ class _Outline:
                 params = ", ".join(f"{p.name}: {_type_text(p.type)}" for p in d.params)
                 return self.sym(d.name, K.Function, d.span, d.name_span,
                                 f"extern ({params}) -> {_type_text(d.result)}")
+            case ast.AgentDef():
+                kids = self.each(d.subsystems, self.subsystem)
+                kids += self.each(d.devices, lambda x: self.sym(
+                    x.name, K.Object, x.span, x.name_span, f"real {x.kind.value}: {x.device}"))
+                return self.sym(d.name, K.Class, d.span, d.name_span, "agent definition", kids)
             case ast.DeviceDecl():
                 kids = self.each(d.buffers, self.buffer)
                 kids += self.each(d.params, lambda p: self.sym(

@@ -13,6 +13,7 @@ from rssm_dsl.semantics.checks import CHECKS, CheckContext
 from rssm_dsl.semantics.checks.context import CheckCache
 from rssm_dsl.semantics.checks.usage import names_read
 from rssm_dsl.semantics.declarations import DeclarationPass, Globals
+from rssm_dsl.semantics.instances import expand
 from rssm_dsl.semantics.loader import Program
 from rssm_dsl.semantics.model import Agent, Behaviour, Buffer, Device, Subsystem, Switch, System
 from rssm_dsl.semantics.properties import check_properties
@@ -116,7 +117,7 @@ def analyze(program: Program, bag: DiagnosticBag, memo: AgentMemo | None = None
                       "time", g.systems[1].name_span,
                       related=(Related(g.systems[0].name_span, "the first system"),))
         return None
-    sysdecl = g.systems[0]
+    sysdecl = expand(g.systems[0], g.agent_defs, bag)
     outside = _outside_systems(program) if memo is not None else ()
     reusable = memo.reusable(outside) if memo is not None else {}
     works: list[AgentWork] = []

@@ -43,6 +43,7 @@ class Globals:
     consts: dict[str, Const] = field(default_factory=dict)
     externs: dict[str, Extern] = field(default_factory=dict)
     devices: dict[str, ast.DeviceDecl] = field(default_factory=dict)
+    agent_defs: dict[str, ast.AgentDef] = field(default_factory=dict)
     systems: list[ast.SystemDecl] = field(default_factory=list)
     spans: dict[str, Span] = field(default_factory=dict)
     # consts and externs whose type could not be determined (an error was reported): their
@@ -105,6 +106,9 @@ class DeclarationPass:
                     self._const(d)
                 case ast.ExternDecl():
                     self._extern(d)
+                case ast.AgentDef():
+                    if self._declare(d.name, d.name_span):
+                        self.g.agent_defs[d.name] = d
                 case ast.DeviceDecl():
                     if self._declare(d.name, d.name_span):
                         self.g.devices[d.name] = d

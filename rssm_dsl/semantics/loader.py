@@ -246,6 +246,13 @@ def _file_names(module: ast.Module) -> list[tuple[str, str, Span]]:
                 out.append(("agent", agent.name, agent.name_span))
                 out += [("subsystem", s.name, s.name_span) for s in agent.subsystems]
                 out += [("device", d.name, d.name_span) for d in agent.devices]
+            for inst in decl.instances:     # r1, ..., r8 of `agent r[1..8]: ...`: the last
+                last = max(inst.hi or 0, -(inst.lo or 0))        # is the longest
+                out.append(("agent", f"{inst.name}{last}" if inst.lo is not None
+                            else inst.name, inst.name_span))
+        elif isinstance(decl, ast.AgentDef):
+            out += [("subsystem", s.name, s.name_span) for s in decl.subsystems]
+            out += [("device", d.name, d.name_span) for d in decl.devices]
     return out
 
 

@@ -421,6 +421,65 @@ class AgentDecl:
     name_span: Span
     subsystems: tuple[SubsystemDecl, ...]
     devices: tuple[DeviceInstance, ...]
+    # made by semantics/instances.py from `agent NAME: DEFINITION(...)`: the definition's
+    # name (its body's spans are the definition's), None for an agent written out
+    instance_of: str | None = None
+
+
+@dataclass(frozen=True, slots=True)
+class AgentParam:
+    """``boss: agent`` (``type`` None: another agent's name, for the peers of buffers) or
+    ``speed: float = 0.2`` (a value the definition's expressions read) in
+    ``agent Robot(boss: agent, speed: float = 0.2) { ... }``."""
+
+    span: Span
+    name: str
+    name_span: Span
+    type: TypeExpr | None
+    default: Expr | None
+
+
+@dataclass(frozen=True, slots=True)
+class AgentDef:
+    """An agent defined once, outside the system, instantiated by :class:`AgentInstance`."""
+
+    span: Span
+    name: str
+    name_span: Span
+    params: tuple[AgentParam, ...]
+    subsystems: tuple[SubsystemDecl, ...]
+    devices: tuple[DeviceInstance, ...]
+
+
+@dataclass(frozen=True, slots=True)
+class AgentInstance:
+    """``agent r1: Robot(boss = coord)``, or ``agent r[2..8]: Robot(...)`` (``lo``..``hi``:
+    the agents r2, ..., r8; None for one agent)."""
+
+    span: Span
+    name: str
+    name_span: Span
+    definition: str
+    definition_span: Span
+    args: tuple[DeviceArg, ...] = ()
+    lo: int | None = None
+    hi: int | None = None
+
+    def names(self) -> tuple[str, ...]:
+        """The agents it declares: none when its range is wrong (:meth:`range_ok`)."""
+        if self.lo is None or self.hi is None:
+            return (self.name,)
+        if not self.range_ok():
+            return ()
+        return tuple(f"{self.name}{k}" for k in range(self.lo, self.hi + 1))
+
+    def range_ok(self) -> bool:
+        """No range, or one from 0 or more that declares 1 to MAX_INSTANCES agents."""
+        return self.lo is None or self.hi is None or (
+            self.lo >= 0 and 0 <= self.hi - self.lo < MAX_INSTANCES)
+
+
+MAX_INSTANCES = 10_000      # agents one indexed line `agent r[1..8]: ...` may declare
 
 
 @dataclass(frozen=True, slots=True)
@@ -447,9 +506,12 @@ class SystemDecl:
     name_span: Span
     agents: tuple[AgentDecl, ...]
     properties: tuple[PropertyDecl, ...] = ()
+    # `agent NAME: DEFINITION(...)` lines, made into agents by semantics/instances.py
+    instances: tuple[AgentInstance, ...] = ()
 
 
-Decl = RecordDecl | AliasDecl | EnumDecl | ConstDecl | ExternDecl | DeviceDecl | SystemDecl
+Decl = (RecordDecl | AliasDecl | EnumDecl | ConstDecl | ExternDecl | DeviceDecl | AgentDef
+        | SystemDecl)
 
 
 @dataclass(frozen=True, slots=True)

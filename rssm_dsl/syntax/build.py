@@ -349,7 +349,8 @@ class AstBuilder:
         items = k[1:]
         return ast.SystemDecl(self._span(t), str(k[0]), self._tok(k[0]),
                               tuple(x for x in items if isinstance(x, ast.AgentDecl)),
-                              tuple(x for x in items if isinstance(x, ast.PropertyDecl)))
+                              tuple(x for x in items if isinstance(x, ast.PropertyDecl)),
+                              tuple(x for x in items if isinstance(x, ast.AgentInstance)))
 
     def r_property_always(self, t: list[Any], k: list[Any]) -> ast.PropertyDecl:
         return ast.PropertyDecl(self._span(t), str(k[0]), self._tok(k[0]), "always", k[1],
@@ -366,6 +367,33 @@ class AstBuilder:
             tuple(x for x in items if isinstance(x, ast.SubsystemDecl)),
             tuple(x for x in items if isinstance(x, ast.DeviceInstance)),
         )
+
+    def r_agent_def(self, t: list[Any], k: list[Any]) -> ast.AgentDef:
+        items = k[2:]
+        return ast.AgentDef(
+            self._span(t), str(k[0]), self._tok(k[0]), k[1] or (),
+            tuple(x for x in items if isinstance(x, ast.SubsystemDecl)),
+            tuple(x for x in items if isinstance(x, ast.DeviceInstance)),
+        )
+
+    def r_agent_params(self, t: list[Any], k: list[Any]) -> tuple[ast.AgentParam, ...]:
+        return tuple(a for a in k if a is not None)
+
+    def r_agent_param_agent(self, t: list[Any], k: list[Any]) -> ast.AgentParam:
+        return ast.AgentParam(self._span(t), str(k[0]), self._tok(k[0]), None, None)
+
+    def r_agent_param_value(self, t: list[Any], k: list[Any]) -> ast.AgentParam:
+        return ast.AgentParam(self._span(t), str(k[0]), self._tok(k[0]), k[1], k[2])
+
+    def r_agent_instance(self, t: list[Any], k: list[Any]) -> ast.AgentInstance:
+        bounds = k[1]
+        return ast.AgentInstance(
+            self._span(t), str(k[0]), self._tok(k[0]), str(k[2]), self._tok(k[2]), k[3] or (),
+            bounds[0] if bounds is not None else None,
+            bounds[1] if bounds is not None else None)
+
+    def r_instance_range(self, t: list[Any], k: list[Any]) -> tuple[int, int]:
+        return k[0][0], k[1][0]
 
     def r_subsystem_kind(self, t: list[Any], k: list[Any]) -> tuple[ast.SubsystemKind, Span]:
         return ast.SubsystemKind(str(k[0])), self._tok(k[0])

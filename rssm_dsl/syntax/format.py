@@ -171,7 +171,8 @@ class _Formatter:
         p = self.prev_sig
         if p is None or self.brackets:
             return False
-        return p.type == "NAME" or (str(p) in _BLOCK_OPENER_KEYWORDS and p.type != "NAME")
+        return p.type == "NAME" or (str(p) in _BLOCK_OPENER_KEYWORDS and p.type != "NAME") \
+            or (str(p) == ")" and self.decl_kw == "agent")   # agent Robot(boss: agent) {
 
     def _is_label(self, tok: Token) -> bool:
         """`case` or an `otherwise` that labels a data-availability case."""

@@ -1,0 +1,180 @@
+"""Agents defined once and instantiated (docs/language.md, "Agent definitions"): the
+system's `agent NAME: DEFINITION(ARGS)` lines made into the agents they declare, before the
+structure pass sees the system.
+
+An instance is its definition's agent under the instance's name: the same subsystems,
+devices and behaviours (their spans are the definition's, so a diagnostic found in one
+instance points at the definition and names the instance's subsystems, `r3.c`), with
+
+* every peer whose first part is a parameter of type `agent` renamed to the agent the
+  instance gives it (`from boss.c` becomes `from coord.c`);
+* every other parameter a `param` of each subsystem of the definition whose expressions
+  read it, with the instance's value (or the default): a name the definition's subsystems
+  read like their own parameters, one value per instance.
+
+`agent r[1..8]: Robot(...)` declares r1, ..., r8, all with the same arguments.
+"""
+
+from __future__ import annotations
+
+import dataclasses
+from collections.abc import Iterator, Mapping
+from typing import Any
+
+from rssm_dsl.diagnostics import DiagnosticBag, Related
+from rssm_dsl.semantics.typecheck import did_you_mean
+from rssm_dsl.source import Span
+from rssm_dsl.syntax import ast
+
+
+def expand(system: ast.SystemDecl, definitions: Mapping[str, ast.AgentDef],
+           bag: DiagnosticBag) -> ast.SystemDecl:
+    """``system`` with its instance lines made into agents, in the order of the text; each
+    problem with an instance line goes to ``bag`` and the line declares no agent."""
+    if not system.instances:
+        return system
+    agent_names = {a.name for a in system.agents}
+    for inst in system.instances:
+        agent_names.update(inst.names())
+    placed: list[tuple[int, ast.AgentDecl]] = [(a.span.offset, a) for a in system.agents]
+    reads: dict[int, frozenset[str]] = {}       # by id of a definition's subsystem
+    for inst in system.instances:
+        made = _instantiate(inst, definitions, agent_names, reads, bag)
+        placed += [(inst.span.offset, a) for a in made]
+    placed.sort(key=lambda x: x[0])             # stable: r1, ..., r8 of one line in order
+    return dataclasses.replace(system, agents=tuple(a for _, a in placed))
+
+
+def _instantiate(inst: ast.AgentInstance, definitions: Mapping[str, ast.AgentDef],
+                 agent_names: set[str], reads: dict[int, frozenset[str]],
+                 bag: DiagnosticBag) -> list[ast.AgentDecl]:
+    d = definitions.get(inst.definition)
+    if d is None:
+        guess = did_you_mean(inst.definition, definitions)
+        bag.error("E311", f"no agent definition '{inst.definition}'", inst.definition_span,
+                  f"did you mean '{guess}'?" if guess else
+                  "define it outside the system: `agent NAME(PARAM: TYPE, ...) { control "
+                  "{ ... } }`" + (f"; defined: {', '.join(sorted(definitions))}"
+                                  if definitions else ""))
+        return []
+    if inst.lo is not None and inst.hi is not None and not inst.range_ok():
+        what = (f"names agents with a negative index ({inst.name}{inst.lo})" if inst.lo < 0
+                else f"declares {max(inst.hi - inst.lo + 1, 0):,} agents")
+        bag.error("E313", f"'{inst.name}[{inst.lo}..{inst.hi}]' {what}", inst.name_span,
+                  f"write LOW..HIGH with 0 <= LOW <= HIGH and at most {ast.MAX_INSTANCES:,} "
+                  "agents")
+        return []
+    values = _arguments(inst, d, agent_names, bag)
+    if values is None:
+        return []
+    peers = {p.name: values[p.name] for p in d.params if p.type is None}
+    given = {p.name: (p, values[p.name]) for p in d.params if p.type is not None}
+    subsystems = []
+    for s in d.subsystems:
+        if id(s) not in reads:
+            reads[id(s)] = frozenset(_names_read(s))
+        subsystems.append(_subsystem(s, peers, given, reads[id(s)], inst, bag))
+    return [ast.AgentDecl(inst.span, name, inst.name_span, tuple(subsystems), d.devices,
+                          instance_of=d.name) for name in inst.names()]
+
+
+def definition_agent(d: ast.AgentDef) -> ast.AgentDecl:
+    """The definition as an agent under its own name, its value parameters the ``param``s
+    of the subsystems that read them (with their defaults; a parameter without one stands
+    for itself): what the language server indexes of the definition's text."""
+    subsystems = []
+    for s in d.subsystems:
+        reads = frozenset(_names_read(s))
+        params = list(s.params)
+        own = {x.name for x in s.memory} | {x.name for x in s.params} | \
+            {b.name for b in s.buffers}
+        for p in d.params:
+            if p.type is not None and p.name in reads and p.name not in own:
+                value = p.default if p.default is not None else ast.Name(p.name_span, p.name)
+                params.append(ast.ParamDecl(p.span, p.name, p.name_span, p.type, value))
+        subsystems.append(dataclasses.replace(s, params=tuple(params)))
+    return ast.AgentDecl(d.span, d.name, d.name_span, tuple(subsystems), d.devices)
+
+
+def _arguments(inst: ast.AgentInstance, d: ast.AgentDef, agent_names: set[str],
+               bag: DiagnosticBag) -> dict[str, Any] | None:
+    """Each parameter's value (an agent's name, or the expression of a value), None when
+    one is missing or wrong (reported)."""
+    params = {p.name: p for p in d.params}
+    out: dict[str, Any] = {}
+    ok = True
+    for arg in inst.args:
+        p = params.get(arg.name)
+        if p is None:
+            guess = did_you_mean(arg.name, params)
+            bag.error("E312", f"agent definition '{d.name}' has no parameter '{arg.name}'",
+                      arg.name_span, f"did you mean '{guess}'?" if guess else
+                      ("its parameters: " + ", ".join(params) if params else
+                       f"'{d.name}' takes no arguments"),
+                      related=(Related(d.name_span, "defined here"),))
+            ok = False
+        elif arg.name in out:
+            bag.error("E312", f"parameter '{arg.name}' is given twice", arg.name_span)
+            ok = False
+        elif p.type is None:
+            if not isinstance(arg.value, ast.Name) or arg.value.name not in agent_names:
+                said = arg.value.name if isinstance(arg.value, ast.Name) else "this value"
+                bag.error("E312", f"parameter '{arg.name}' of '{d.name}' is an agent, and "
+                          f"'{said}' is no agent of the system", arg.value.span,
+                          "give the name of an agent of this system"
+                          + (f", e.g. '{sorted(agent_names)[0]}'" if agent_names else ""))
+                ok = False
+            else:
+                out[arg.name] = arg.value.name
+        else:
+            out[arg.name] = arg.value
+    for p in d.params:
+        if p.name in out or any(a.name == p.name for a in inst.args):
+            continue
+        if p.default is not None:
+            out[p.name] = p.default
+            continue
+        bag.error("E312", f"'{inst.definition}' needs a value for its parameter '{p.name}'",
+                  inst.span, f"write `{p.name} = ...` in the parentheses after "
+                  f"'{inst.definition}'", related=(Related(p.span, "declared here"),))
+        ok = False
+    return out if ok else None
+
+
+def _subsystem(s: ast.SubsystemDecl, peers: Mapping[str, str],
+               given: Mapping[str, tuple[ast.AgentParam, Any]], reads: frozenset[str],
+               inst: ast.AgentInstance, bag: DiagnosticBag) -> ast.SubsystemDecl:
+    buffers = tuple(
+        dataclasses.replace(b, peer=dataclasses.replace(
+            b.peer, parts=(peers[b.peer.parts[0]], *b.peer.parts[1:])))
+        if b.peer is not None and b.peer.parts and b.peer.parts[0] in peers else b
+        for b in s.buffers)
+    own: dict[str, Span] = {x.name: x.name_span for x in s.memory}
+    own.update({x.name: x.name_span for x in s.buffers})
+    own.update({x.name: x.name_span for x in s.params})
+    params = list(s.params)
+    for name, (p, value) in given.items():
+        if name not in reads:
+            continue
+        if name in own:
+            bag.error("E312", f"'{name}' of {s.name} hides the parameter '{name}' of agent "
+                      f"definition '{inst.definition}'", own[name],
+                      "rename one of them", related=(Related(p.name_span, "the parameter"),))
+            continue
+        assert p.type is not None
+        params.append(ast.ParamDecl(p.span, name, p.name_span, p.type, value))
+    return dataclasses.replace(s, buffers=buffers, params=tuple(params))
+
+
+def _names_read(node: object) -> Iterator[str]:
+    """Every name an expression of ``node`` (an AST node, and all it holds) mentions;
+    without recursion (nested expressions may be deep)."""
+    stack: list[object] = [node]
+    while stack:
+        x = stack.pop()
+        if isinstance(x, ast.Name):
+            yield x.name
+        elif isinstance(x, tuple | list):
+            stack.extend(x)
+        elif dataclasses.is_dataclass(x) and not isinstance(x, type | Span):
+            stack.extend(getattr(x, f.name) for f in dataclasses.fields(x))
