@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import threading
+from collections.abc import Mapping
 from dataclasses import field, replace
 
 from rssm_core.records import dataclass
@@ -97,11 +98,56 @@ def _agent_work(a: ast.AgentDecl, g: Globals, decls: DeclarationPass) -> AgentWo
     return AgentWork(a, shell, subsystems, tuple(bag.items))
 
 
+def _once_per_definition(bag: DiagnosticBag, start: int,
+                         definitions: Mapping[str, ast.AgentDef]) -> None:
+    """The diagnostics from ``start`` on that point into an agent definition's text, one per
+    problem: each instance finds it again, so the first instance's is kept, saying how many
+    others have it too."""
+    inside = [(d.name, d.span.file, d.span.offset, d.span.end_offset)
+              for d in definitions.values()]
+    if not inside:
+        return
+    kept: list[Diagnostic] = []
+    count: dict[tuple[str, str, int, int], int] = {}
+    first: dict[tuple[str, str, int, int], int] = {}
+    owner: dict[tuple[str, str, int, int], str] = {}
+    for d in bag.items[start:]:
+        name = next((n for n, f, a, b in inside
+                     if d.span.file == f and a <= d.span.offset < b), None)
+        if name is None:
+            kept.append(d)
+            continue
+        key = (d.code, d.span.file, d.span.offset, d.span.end_offset)
+        if key in first:
+            count[key] += 1
+            continue
+        first[key], count[key], owner[key] = len(kept), 0, name
+        kept.append(d)
+    for key, at in first.items():
+        n = count[key]
+        if n:
+            kept[at] = replace(kept[at], message=f"{kept[at].message} (and in {n} more "
+                               f"instance{'s' if n > 1 else ''} of {owner[key]})")
+    bag.items[start:] = kept
+
+
 def analyze(program: Program, bag: DiagnosticBag, memo: AgentMemo | None = None
             ) -> System | None:
     """The semantic model of the program (None when it has no single system); every
     problem goes to `bag`. With `memo`, agents unchanged since the last call are not
     analysed again."""
+    start = len(bag.items)
+    try:
+        return _analyze(program, bag, memo)
+    finally:
+        _once_per_definition(bag, start, _definitions(program))
+
+
+def _definitions(program: Program) -> dict[str, ast.AgentDef]:
+    return {d.name: d for m in program.modules for d in m.decls if isinstance(d, ast.AgentDef)}
+
+
+def _analyze(program: Program, bag: DiagnosticBag, memo: AgentMemo | None) -> System | None:
     decls = DeclarationPass(bag)
     g = decls.run(program.modules, program.root)
     root = program.root

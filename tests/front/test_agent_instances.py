@@ -202,3 +202,13 @@ def test_fmt_keeps_definitions_and_instance_lines() -> None:
                             "agent   Robot( boss :agent,shift: 1..4=2 ){ control")
     again = format_text(squashed).text
     assert again == text
+
+
+def test_a_problem_of_the_definition_is_reported_once(tmp_path: Path) -> None:
+    """Each instance finds a problem of the definition's text again: it is reported once,
+    with the first instance's name and the count of the others."""
+    text = _system("  agent r[1..3]: Robot(boss = coord)").replace(
+        "    memory done: 0..4 = 0\n", "    memory done: 0..4 = 0\n    memory spare: 0..4 = 0\n")
+    comp = _compile(tmp_path, text)
+    [w] = [d for d in comp.diagnostics if d.code == "W702"]
+    assert "r1.c" in w.message and "and in 2 more instances of Robot" in w.message
