@@ -20,6 +20,7 @@ from rssm_dsl.semantics.model import Agent, Behaviour, Buffer, Device, Subsystem
 from rssm_dsl.semantics.properties import check_properties
 from rssm_dsl.semantics.structure import AgentShell, Shell, StructurePass
 from rssm_dsl.syntax import ast
+from rssm_dsl.syntax.walk import names
 
 
 def _paired(shell: Shell, paired: dict[str, Buffer]) -> tuple[list[Buffer], list[Buffer]]:
@@ -163,7 +164,7 @@ def _analyze(program: Program, bag: DiagnosticBag, memo: AgentMemo | None) -> Sy
                       "time", g.systems[1].name_span,
                       related=(Related(g.systems[0].name_span, "the first system"),))
         return None
-    sysdecl = expand(g.systems[0], g.agent_defs, bag)
+    sysdecl, failed = expand(g.systems[0], g.agent_defs, bag)
     outside = _outside_systems(program) if memo is not None else ()
     reusable = memo.reusable(outside) if memo is not None else {}
     works: list[AgentWork] = []
@@ -179,7 +180,7 @@ def _analyze(program: Program, bag: DiagnosticBag, memo: AgentMemo | None) -> Sy
         memo.keep(outside, works)
     agent_shells = [w.shell for w in works]
     done = {sid: b for w in works for sid, b in w.subsystems.items()}
-    channels = ChannelPass(bag, agent_shells).run()
+    channels = ChannelPass(bag, agent_shells, failed).run()
     paired = {b.qualified: b for ch in channels for b in (ch.producer, ch.consumer)}
 
     agents: list[Agent] = []
@@ -214,8 +215,11 @@ def _analyze(program: Program, bag: DiagnosticBag, memo: AgentMemo | None) -> Sy
                     tuple(g.consts.values()), tuple(g.externs.values()),
                     tuple(sorted(g.types.items())))
     property_reads: dict[str, set[str]] = {}
-    properties = check_properties(bag, system, sysdecl.properties, g.symbols(), sub_decls,
-                                  property_reads)
+    # (a property of an agent whose instance line failed is not checked: it was reported)
+    properties = check_properties(bag, system, tuple(
+        p for p in sysdecl.properties if not failed.intersection(
+            n.name for e in p.expressions for n in names(e))), g.symbols(), sub_decls,
+        property_reads)
     ctx = CheckContext(bag, system, sub_decls, written, read, unchecked, property_reads,
                        root_file=root.span.file, cache=checks if memo is not None else None)
     for check in CHECKS:

@@ -11,6 +11,7 @@ Allowed links: c-e, c-r, e-E, r-R inside an agent, and c-c between agents (T buf
 
 from __future__ import annotations
 
+from collections.abc import Collection
 from dataclasses import replace
 
 from rssm_dsl.diagnostics import DiagnosticBag, Related
@@ -36,9 +37,11 @@ def _link_allowed(a: Shell, b: Shell) -> bool:
 
 
 class ChannelPass:
-    def __init__(self, bag: DiagnosticBag, agents: list[AgentShell]) -> None:
+    def __init__(self, bag: DiagnosticBag, agents: list[AgentShell],
+                 failed: Collection[str] = ()) -> None:
         self.bag = bag
         self.agents = {a.name: a for a in agents}
+        self.failed_agents = frozenset(failed)   # of instance lines reported (instances.py)
         self.by_id = {s.id: s for a in agents for s in a.shells}
         self.broken = set().union(*(a.broken for a in agents))  # device instances reported
         self.failed: set[str] = set()   # shells at the far end of a link already reported
@@ -56,6 +59,8 @@ class ChannelPass:
                                f"(write `{agent}.c`)", peer.span)
                 return None
         letter = parts[0]
+        if letter in self.failed_agents and len(parts) >= 2:
+            return None
         if letter not in _LETTERS and parts[1:2] == ["c"]:
             guess = did_you_mean(letter, self.agents)
             bag.error("E303", f"'{peer}': there is no agent '{letter}'", peer.span,

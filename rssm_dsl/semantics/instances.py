@@ -28,21 +28,26 @@ from rssm_dsl.syntax import ast
 
 
 def expand(system: ast.SystemDecl, definitions: Mapping[str, ast.AgentDef],
-           bag: DiagnosticBag) -> ast.SystemDecl:
-    """``system`` with its instance lines made into agents, in the order of the text; each
-    problem with an instance line goes to ``bag`` and the line declares no agent."""
+           bag: DiagnosticBag) -> tuple[ast.SystemDecl, frozenset[str]]:
+    """``system`` with its instance lines made into agents, in the order of the text, and
+    the names of the agents of the lines that declare none: each problem with an instance
+    line goes to ``bag``, and what names those agents is not reported again (no "there is
+    no agent r3" after the error on r3's line)."""
     if not system.instances:
-        return system
+        return system, frozenset()
     agent_names = {a.name for a in system.agents}
     for inst in system.instances:
         agent_names.update(inst.names())
     placed: list[tuple[int, ast.AgentDecl]] = [(a.span.offset, a) for a in system.agents]
     reads: dict[int, frozenset[str]] = {}       # by id of a definition's subsystem
+    failed: set[str] = set()
     for inst in system.instances:
         made = _instantiate(inst, definitions, agent_names, reads, bag)
         placed += [(inst.span.offset, a) for a in made]
+        if not made:
+            failed.update(_meant(inst))
     placed.sort(key=lambda x: x[0])             # stable: r1, ..., r8 of one line in order
-    return dataclasses.replace(system, agents=tuple(a for _, a in placed))
+    return dataclasses.replace(system, agents=tuple(a for _, a in placed)), frozenset(failed)
 
 
 def _instantiate(inst: ast.AgentInstance, definitions: Mapping[str, ast.AgentDef],
@@ -118,11 +123,7 @@ def _arguments(inst: ast.AgentInstance, d: ast.AgentDef, agent_names: set[str],
             ok = False
         elif p.type is None:
             if not isinstance(arg.value, ast.Name) or arg.value.name not in agent_names:
-                said = arg.value.name if isinstance(arg.value, ast.Name) else "this value"
-                bag.error("E312", f"parameter '{arg.name}' of '{d.name}' is an agent, and "
-                          f"'{said}' is no agent of the system", arg.value.span,
-                          "give the name of an agent of this system"
-                          + (f", e.g. '{sorted(agent_names)[0]}'" if agent_names else ""))
+                _not_an_agent(arg, d, agent_names, bag)
                 ok = False
             else:
                 out[arg.name] = arg.value.name
@@ -139,6 +140,36 @@ def _arguments(inst: ast.AgentInstance, d: ast.AgentDef, agent_names: set[str],
                   f"'{inst.definition}'", related=(Related(p.span, "declared here"),))
         ok = False
     return out if ok else None
+
+
+def _meant(inst: ast.AgentInstance) -> tuple[str, ...]:
+    """The agents a line meant to declare (a range written high to low: those between)."""
+    lo, hi = inst.lo, inst.hi
+    if lo is None or hi is None or inst.range_ok():
+        return inst.names()
+    lo, hi = max(min(lo, hi), 0), max(lo, hi)     # (a negative index names no agent)
+    if hi < lo or hi - lo >= ast.MAX_INSTANCES:
+        return ()
+    return tuple(f"{inst.name}{k}" for k in range(lo, hi + 1))
+
+
+def _not_an_agent(arg: ast.DeviceArg, d: ast.AgentDef, agent_names: set[str],
+                  bag: DiagnosticBag) -> None:
+    """E312: an `agent` parameter given something that is not an agent's name."""
+    v = arg.value
+    if isinstance(v, ast.FieldAccess) and isinstance(v.value, ast.Name) and \
+            v.value.name in agent_names:
+        said, hint = f"{v.value.name}.{v.field}", f"give the agent alone: `{arg.name} = " \
+            f"{v.value.name}` (the definition names its subsystems, `{arg.name}.c`)"
+    elif isinstance(v, ast.Name):
+        guess = did_you_mean(v.name, agent_names)
+        said = v.name
+        hint = (f"did you mean '{guess}'?" if guess else "give the name of an agent of this "
+                "system" + (f": {', '.join(sorted(agent_names)[:6])}" if agent_names else ""))
+    else:
+        said, hint = "this value", "give the name of an agent of this system"
+    bag.error("E312", f"parameter '{arg.name}' of '{d.name}' is an agent, and '{said}' is "
+              "no agent of the system", v.span, hint)
 
 
 def _subsystem(s: ast.SubsystemDecl, peers: Mapping[str, str],

@@ -171,6 +171,8 @@ def test_instance_lines_that_do_not_fit_their_definition(tmp_path: Path) -> None
         "  agent r[1..3]: Robot(shift = 2)": ("E312", "boss"),
         "  agent r[1..3]: Robot(boss = coord, shoft = 2)": ("E312", "shift"),
         "  agent r[1..3]: Robot(boss = r9)": ("E312", "r9"),
+        "  agent r[1..3]: Robot(boss = cord)": ("E312", "did you mean 'coord'"),
+        "  agent r[1..3]: Robot(boss = coord.c)": ("E312", "`boss = coord`"),
         "  agent r[3..1]: Robot(boss = coord)": ("E313", "0 agents"),
         "  agent r[-1..3]: Robot(boss = coord)": ("E313", "negative"),
     }
@@ -182,6 +184,8 @@ def test_instance_lines_that_do_not_fit_their_definition(tmp_path: Path) -> None
         assert said in mine[0].message + (mine[0].hint or ""), (line, mine[0])
         assert text.splitlines()[mine[0].span.line - 1] == line
         assert comp.hpn is None
+        # what names r1..r3 elsewhere (the coordinator's buffers) is not reported again
+        assert {d.code for d in comp.diagnostics if d.is_error} == {code}, comp.diagnostics
 
 
 def test_a_value_parameter_hidden_by_a_subsystems_own_name(tmp_path: Path) -> None:
