@@ -80,6 +80,7 @@ REDUCTIONS = ("auto", "on", "off", "compositional")
 SMALL_NET = 400        # places: below, the minimal semiflows are always enumerated
 SLICES_SHARE = 2 / 3   # of the time left, for the sliced verification (the rest: whole net)
 ABSTRACT_SHARE = 1 / 3  # of the time left, for the pass with the conditions as free choices
+PROPERTIES_SHARE = 0.4  # of the run's time, kept for the properties stated in the spec
 
 
 @dataclass(frozen=True)
@@ -288,7 +289,17 @@ def _first_steps(net: FlatNet, opts: VerifyOptions,
     if opts.values is not None and opts.values_first:
         if opts.budget is None:
             opts = dataclasses.replace(opts, budget=Budget(opts.time_limit, opts.max_memory))
-        return None, _with_properties(net, opts, _abstraction_first(net, opts))
+        budget = opts.budget
+        assert budget is not None
+        left = budget.remaining()
+        system = opts.values.system if opts.values is not None else None
+        if left is None or system is None or not system.properties:
+            return None, _with_properties(net, opts, _abstraction_first(net, opts))
+        # the properties keep a share of the time whatever safeness, deadlocks and progress
+        # take (a fleet's progress check took a whole run, its properties "not checked")
+        with budget.capped((1 - PROPERTIES_SHARE) * left):
+            first = _abstraction_first(net, opts)
+        return None, _with_properties(net, opts, first)
     # (a slice, verified with slicing off, has its environment: stalls.py's argument for
     # it is the sliced verification's own)
     if not (opts.check_progress and opts.fairness == "strong" and opts.stall_shortcut

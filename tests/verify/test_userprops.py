@@ -482,3 +482,28 @@ def test_a_slice_tracks_new_of_what_its_environment_feeds() -> None:
     took = next(i for i, x in enumerate(labels) if "takes new blocked" in x)
     copied = next(i for i, x in enumerate(labels) if "computes part_here when new(blocked)" in x)
     assert took < copied < next(i for i, x in enumerate(labels) if "ends [present]" in x)
+
+
+def test_the_properties_keep_their_share_of_the_time(monkeypatch: pytest.MonkeyPatch) -> None:
+    """Safeness, deadlocks and progress that would take the whole run (here: a pass that
+    waits out every second it is given) leave the properties PROPERTIES_SHARE of it: they
+    are checked, not reported "not checked" (a fleet of the trial of issue 32 had its
+    progress check take all 60 s and none of its three properties checked)."""
+    import time
+
+    from rssm_dsl.verify import verifier
+
+    real = verifier._abstraction_first
+
+    def slow(net: FlatNet, opts: VerifyOptions) -> object:
+        assert opts.budget is not None
+        while (opts.budget.remaining() or 0.0) > 0.05:
+            time.sleep(0.05)
+        return real(net, opts)
+
+    monkeypatch.setattr(verifier, "_abstraction_first", slow)
+    net, plan = _compiled("coin_toss.rssm")
+    r = verify(net, VerifyOptions(values=plan, time_limit=20))  # type: ignore[arg-type]
+    assert {p.name: p.holds for p in r.user_properties} == {"returns": False,
+                                                             "tossed": True}
+    assert r.verdict is Verdict.VIOLATED
