@@ -163,7 +163,8 @@ def verify(net: FlatNet, options: VerifyOptions | None = None) -> VerifyReport:
             # what the slices found and the whole net did not confirm stays in an open
             # report (the whole net's verdict, when it gives one, settles it)
             return dataclasses.replace(whole, notes=(
-                f"sliced verification left the verdict open ({sliced.why_undecided}); "
+                f"sliced verification left the verdict open "
+                f"({sliced.why_undecided or 'no slice decided it'}); "
                 "the whole net was verified instead", *whole.notes),
                 unconfirmed=sliced.unconfirmed
                 if whole.verdict is Verdict.INCONCLUSIVE else ())
