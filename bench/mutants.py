@@ -218,8 +218,8 @@ MUTANTS = (
            "a property's slice lacks the producers of the values it tracks (the environment "
            "writes any value there)",
            "rssm_dsl/verify/userprops.py",
-           "        if f\"channel {c.name}\" in tracked:\n            return True\n",
-           "        if False:\n            return True\n"),
+           "            if f\"channel {c.name}\" in tracked:\n                return True\n",
+           "            if False:\n                return True\n"),
     Mutant("slice-values-of-every-condition",
            "a property's slice holds the producers of the values any condition of the whole "
            "net reads, not only its own subsystems' (a fleet's coordinator brings in every "
