@@ -242,9 +242,11 @@ def _check_behaviour(ctx: CheckContext, s: Subsystem, b: Behaviour) -> None:
                       f"holds {shown}", b.span,
                       f"add `switch {b.name} -> NEXT otherwise` or cover these cases")
     for (i, j), when in sorted(overlaps.items()):
-        ctx.bag.warn("W604", f"switches from '{b.name}' overlap {when}: both may fire",
-                     formulas[j][0].span,
-                     related=(Related(formulas[i][0].span, "this switch also holds"),))
+        ctx.bag.warn("W604", f"switches from '{b.name}' overlap {when}: both hold, and the "
+                     "one declared first is taken", formulas[j][0].span,
+                     "make the conditions disjoint, or put the switch meant to win first",
+                     related=(Related(formulas[i][0].span, "this switch also holds, and is "
+                                      "declared first: it is taken"),))
 
 
 def _check_reachability(ctx: CheckContext, s: Subsystem) -> None:
