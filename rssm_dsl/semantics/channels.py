@@ -167,9 +167,13 @@ class ChannelPass:
             return None
         if len(candidates) > 1:
             names = ", ".join(b.name for b in candidates)
+            # the example offered is one of the buffer's own type when there is one
+            fits = [b for b in candidates if b.type == buf.type]
             self.bag.error("E306", f"several buffers of {peer.id} could match '{buf.name}': "
                            f"{names}", ref.span, f"write `{ref}.BUFFER`, e.g. `{ref}."
-                           f"{candidates[0].name}`")
+                           f"{(fits or candidates)[0].name}`" + (
+                               f" (of type {buf.type}, as '{buf.name}' is)" if fits else
+                               f"; none of them is of type {buf.type}, as '{buf.name}' is"))
             return None
         partner = candidates[0]
         if partner.type != buf.type:
