@@ -189,6 +189,11 @@ class Budget:
                 self.stop = None
                 outcome.hit = True
 
+    @property
+    def inside_cap(self) -> bool:
+        """Is a shorter deadline of :meth:`capped` (a try with its own schedule) in force?"""
+        return bool(self._caps)
+
     def elapsed(self) -> float:
         return time.monotonic() - self.start
 

@@ -294,10 +294,12 @@ def _first_steps(net: FlatNet, opts: VerifyOptions,
         assert budget is not None
         left = budget.remaining()
         system = opts.values.system if opts.values is not None else None
-        if left is None or system is None or not system.properties:
+        if left is None or system is None or not system.properties or budget.inside_cap:
             return None, _with_properties(net, opts, _abstraction_first(net, opts))
         # the properties keep a share of the time whatever safeness, deadlocks and progress
-        # take (a fleet's progress check took a whole run, its properties "not checked")
+        # take (a fleet's progress check took a whole run, its properties "not checked");
+        # a capped try has its caller's schedule (falsify/orchestrate.py gives the
+        # properties a try of their own after it)
         with budget.capped((1 - PROPERTIES_SHARE) * left):
             first = _abstraction_first(net, opts)
         return None, _with_properties(net, opts, first)
