@@ -109,6 +109,7 @@ class DeclarationPass:
                 case ast.AgentDef():
                     if self._declare(d.name, d.name_span):
                         self.g.agent_defs[d.name] = d
+                    self._agent_params(d)
                 case ast.DeviceDecl():
                     if self._declare(d.name, d.name_span):
                         self.g.devices[d.name] = d
@@ -121,6 +122,17 @@ class DeclarationPass:
                         self.bag.error("E104", f"system '{d.name}' is declared in an imported "
                                        "module", d.name_span, "compile that file instead")
         return self.g
+
+    def _agent_params(self, d: ast.AgentDef) -> None:
+        """E101 for a parameter of an agent definition declared twice."""
+        seen: dict[str, Span] = {}
+        for p in d.params:
+            if p.name in seen:
+                self.bag.error("E101", f"parameter '{p.name}' of agent definition '{d.name}' "
+                               "is declared twice", p.name_span, "rename one of them",
+                               related=(Related(seen[p.name], "first declared here"),))
+            else:
+                seen[p.name] = p.name_span
 
     # ------------------------------------------------------------------ types
     def resolve_type(self, t: ast.TypeExpr) -> Type | None:

@@ -216,3 +216,11 @@ def test_a_problem_of_the_definition_is_reported_once(tmp_path: Path) -> None:
     comp = _compile(tmp_path, text)
     [w] = [d for d in comp.diagnostics if d.code == "W702"]
     assert "r1.c" in w.message and "and in 2 more instances of Robot" in w.message
+
+
+def test_a_parameter_declared_twice(tmp_path: Path) -> None:
+    text = _system("  agent r[1..3]: Robot(boss = coord)").replace(
+        "agent Robot(boss: agent, shift", "agent Robot(boss: agent, boss: agent, shift")
+    comp = _compile(tmp_path, text)
+    [e] = [d for d in comp.diagnostics if d.code == "E101"]
+    assert "parameter 'boss'" in e.message and e.span.line == 2
