@@ -18,10 +18,11 @@ instance points at the definition and names the instance's subsystems, `r3.c`), 
 from __future__ import annotations
 
 import dataclasses
-from collections.abc import Iterator, Mapping
+from collections.abc import Mapping
 from typing import Any
 
 from rssm_dsl.diagnostics import DiagnosticBag, Related
+from rssm_dsl.semantics.checks.usage import names_read
 from rssm_dsl.semantics.typecheck import did_you_mean
 from rssm_dsl.source import Span
 from rssm_dsl.syntax import ast
@@ -77,7 +78,7 @@ def _instantiate(inst: ast.AgentInstance, definitions: Mapping[str, ast.AgentDef
     subsystems = []
     for s in d.subsystems:
         if id(s) not in reads:
-            reads[id(s)] = frozenset(_names_read(s))
+            reads[id(s)] = frozenset(names_read(s))
         subsystems.append(_subsystem(s, peers, given, reads[id(s)], inst, bag))
     return [ast.AgentDecl(inst.span, name, inst.name_span, tuple(subsystems), d.devices,
                           instance_of=d.name) for name in inst.names()]
@@ -89,7 +90,7 @@ def definition_agent(d: ast.AgentDef) -> ast.AgentDecl:
     for itself): what the language server indexes of the definition's text."""
     subsystems = []
     for s in d.subsystems:
-        reads = frozenset(_names_read(s))
+        reads = frozenset(names_read(s))
         params = list(s.params)
         own = {x.name for x in s.memory} | {x.name for x in s.params} | \
             {b.name for b in s.buffers}
@@ -195,17 +196,3 @@ def _subsystem(s: ast.SubsystemDecl, peers: Mapping[str, str],
         assert p.type is not None
         params.append(ast.ParamDecl(p.span, name, p.name_span, p.type, value))
     return dataclasses.replace(s, buffers=buffers, params=tuple(params))
-
-
-def _names_read(node: object) -> Iterator[str]:
-    """Every name an expression of ``node`` (an AST node, and all it holds) mentions;
-    without recursion (nested expressions may be deep)."""
-    stack: list[object] = [node]
-    while stack:
-        x = stack.pop()
-        if isinstance(x, ast.Name):
-            yield x.name
-        elif isinstance(x, tuple | list):
-            stack.extend(x)
-        elif dataclasses.is_dataclass(x) and not isinstance(x, type | Span):
-            stack.extend(getattr(x, f.name) for f in dataclasses.fields(x))
