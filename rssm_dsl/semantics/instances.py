@@ -79,7 +79,7 @@ def _instantiate(inst: ast.AgentInstance, definitions: Mapping[str, ast.AgentDef
     for s in d.subsystems:
         if id(s) not in reads:
             reads[id(s)] = frozenset(names_read(s))
-        subsystems.append(_subsystem(s, peers, given, reads[id(s)], inst, bag))
+        subsystems.append(_subsystem(s, peers, given, reads[id(s)], d.name, bag))
     return [ast.AgentDecl(inst.span, name, inst.name_span, tuple(subsystems), d.devices,
                           instance_of=d.name) for name in inst.names()]
 
@@ -88,18 +88,11 @@ def definition_agent(d: ast.AgentDef) -> ast.AgentDecl:
     """The definition as an agent under its own name, its value parameters the ``param``s
     of the subsystems that read them (with their defaults; a parameter without one stands
     for itself): what the language server indexes of the definition's text."""
-    subsystems = []
-    for s in d.subsystems:
-        reads = frozenset(names_read(s))
-        params = list(s.params)
-        own = {x.name for x in s.memory} | {x.name for x in s.params} | \
-            {b.name for b in s.buffers}
-        for p in d.params:
-            if p.type is not None and p.name in reads and p.name not in own:
-                value = p.default if p.default is not None else ast.Name(p.name_span, p.name)
-                params.append(ast.ParamDecl(p.span, p.name, p.name_span, p.type, value))
-        subsystems.append(dataclasses.replace(s, params=tuple(params)))
-    return ast.AgentDecl(d.span, d.name, d.name_span, tuple(subsystems), d.devices)
+    given = {p.name: (p, p.default if p.default is not None else ast.Name(p.name_span, p.name))
+             for p in d.params if p.type is not None}
+    subsystems = tuple(_subsystem(s, {}, given, frozenset(names_read(s)), d.name,
+                                  DiagnosticBag()) for s in d.subsystems)
+    return ast.AgentDecl(d.span, d.name, d.name_span, subsystems, d.devices)
 
 
 def _arguments(inst: ast.AgentInstance, d: ast.AgentDef, agent_names: set[str],
@@ -175,7 +168,7 @@ def _not_an_agent(arg: ast.DeviceArg, d: ast.AgentDef, agent_names: set[str],
 
 def _subsystem(s: ast.SubsystemDecl, peers: Mapping[str, str],
                given: Mapping[str, tuple[ast.AgentParam, Any]], reads: frozenset[str],
-               inst: ast.AgentInstance, bag: DiagnosticBag) -> ast.SubsystemDecl:
+               definition: str, bag: DiagnosticBag) -> ast.SubsystemDecl:
     buffers = tuple(
         dataclasses.replace(b, peer=dataclasses.replace(
             b.peer, parts=(peers[b.peer.parts[0]], *b.peer.parts[1:])))
@@ -190,7 +183,7 @@ def _subsystem(s: ast.SubsystemDecl, peers: Mapping[str, str],
             continue
         if name in own:
             bag.error("E312", f"'{name}' of {s.name} hides the parameter '{name}' of agent "
-                      f"definition '{inst.definition}'", own[name],
+                      f"definition '{definition}'", own[name],
                       "rename one of them", related=(Related(p.name_span, "the parameter"),))
             continue
         assert p.type is not None
