@@ -114,7 +114,8 @@ class Simulator:
         self.rt = rt
         self.opt = options
         self.game = TokenGame(rt.net)
-        self.watchdog = Watchdog(rt, options.stall_periods if options.forced is None else 0)
+        self.watchdog = Watchdog(rt, options.stall_periods if options.forced is None else 0,
+                                 on_work=not isinstance(rt.clock, SimClock))
         self.stalled: set[str] = set()           # the subsystems of an E809
         (self.final,) = tuple(rt.net.final)
         self.markings: list[frozenset[int]] = []

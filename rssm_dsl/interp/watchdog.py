@@ -14,6 +14,14 @@ value, which is the system's rhythm and not a stall. A subsystem that has ended 
 `end`) is not watched. Simulated time only advances at ticks, so a system with no frequency
 at all cannot stall this way (it deadlocks or stands still: E805, E808).
 
+On the wall clock (``--mode concurrent``) time passes whether or not the process runs: on a
+busy machine it may get no CPU for longer than the limit, and every subsystem would look
+stalled. There a stall is judged on work done as well: the rest of the system must have
+worked ``periods`` slowest periods meanwhile, i.e. some *other* paced subsystem or device
+started iterations worth that time (its starts times its period; a late tick is skipped, not
+counted). In simulated time the clock only advances at ticks that are taken, so the clock is
+the work and this second test is not made.
+
 The run stops with E809, which names each stalled subsystem, its behaviour, and what it
 waits for (the places its next transition misses; a channel is worded by what is awaited
 and the state it stands in: "waits for the consumer to take the value: channel ...: full",
@@ -27,6 +35,7 @@ from typing import TYPE_CHECKING
 from rssm_core.records import dataclass
 
 if TYPE_CHECKING:   # the command line reads STALL_PERIODS without loading the interpreter
+    from rssm_dsl.interp.clock import Ticker
     from rssm_dsl.interp.program import Runtime
     from rssm_dsl.interp.state import SubsystemState
 
@@ -43,10 +52,13 @@ class Watchdog:
     """Checks every half slowest period (of simulated or wall-clock time) which subsystems
     have stopped completing iterations."""
 
-    def __init__(self, rt: Runtime, periods: int) -> None:
+    def __init__(self, rt: Runtime, periods: int, *, on_work: bool = False) -> None:
         self.rt = rt
         tickers = [s.ticker for s in rt.subsystems.values() if s.ticker is not None]
         tickers += [d.ticker for d in rt.devices.values() if d.ticker is not None]
+        self.tickers: list[Ticker] = tickers
+        self.on_work = on_work       # wall clock: the rest of the system must have worked too
+        self.starts: dict[str, list[int]] = {}   # per subsystem: tickers' starts at `since`
         self.reference = max((t.period for t in tickers), default=0)   # ns
         self.periods = periods
         self.active = periods > 0 and self.reference > 0
@@ -67,7 +79,19 @@ class Watchdog:
             done, since = self.seen[sid]
             if s.completed != done:
                 self.seen[sid] = (s.completed, now)
+                if self.on_work:
+                    self.starts[sid] = [t.starts for t in self.tickers]
                 continue
-            if not s.ended and now - since >= self.limit:
+            if not s.ended and now - since >= self.limit and self._others_worked(sid, s.ticker):
                 out.append(Stall(s, since))
         return out
+
+    def _others_worked(self, sid: str, own: Ticker | None) -> bool:
+        """On the wall clock: another paced subsystem or device started iterations worth the
+        limit since ``sid``'s last iteration (always true in simulated time)."""
+        if not self.on_work:
+            return True
+        before = self.starts.get(sid)
+        done = max((((t.starts - (before[k] if before else 0)) * t.period)
+                    for k, t in enumerate(self.tickers) if t is not own), default=0)
+        return done >= self.limit

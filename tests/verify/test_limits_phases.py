@@ -25,12 +25,11 @@ from typer.testing import CliRunner
 from rssm_dsl.cli import make_app
 from rssm_dsl.synth import lean_ring_system
 from rssm_dsl.verify.budget import Budget, LimitReached
-from tests.conftest import EXAMPLES, ROOT
+from tests.conftest import EXAMPLES, FAR_EARLIER, ROOT
 
 EXIT_USAGE, EXIT_INCONCLUSIVE, EXIT_INTERRUPTED = 2, 3, 130
 SPEC = EXAMPLES / "verify" / "deadlock_pair.rssm"     # small: every phase is quick
 SLOW = 600.0                                          # seconds a slowed phase would take
-FAR_EARLIER = 60.0
 
 
 def spin(seconds: float = SLOW) -> None:
