@@ -402,6 +402,8 @@ class _Builder:
             rt.effects[i] = _next_iteration(s)
             if cond.constant is not True:
                 rt.guards[i] = lambda: not s.stop()
+                if s.condition_failed is None:   # t_4 and t_out leave the same place
+                    s.condition_failed = _condition_failed(rt, s, rt.net.transitions[i].pre[0])
         elif cond.kind is CondKind.STOP:
             rt.effects[i] = _behaviour_ends(s)
             if cond.constant is not True:
@@ -441,6 +443,17 @@ class _Builder:
             rt.guards[i] = (lambda: own() and not any(g() for g in earlier)) if earlier else own
         elif earlier:
             rt.guards[i] = lambda: not any(g() for g in earlier)
+
+
+def _condition_failed(rt: Runtime, s: SubsystemState, p: int) -> Callable[[EvalError], None]:
+    """A terminal or error condition failed to evaluate at the end of an iteration (in place
+    ``p``), in a behaviour with an error condition: recorded as an operation's failure is."""
+    place = rt.net.places[p].name
+
+    def record(err: EvalError) -> None:
+        rt.emit({"event": "error", "code": err.code, "message": err.message,
+                 "span": str(err.span), "subsystem": s.id, "place": place, "handled": True})
+    return record
 
 
 def _getter(s: SubsystemState, name: str) -> Callable[[], Any]:

@@ -55,6 +55,9 @@ class SubsystemState:
     last_conds: dict[str, bool] = field(default_factory=dict)  # of the behaviour that ended
     failed: EvalError | None = None              # an operation failed in this iteration
     handled_errors: int = 0
+    # called with a terminal or error condition that failed to evaluate (handled: the
+    # error conditions hold); the runtime records it in the trace as it does an operation's
+    condition_failed: Callable[[EvalError], None] | None = None
 
     def __post_init__(self) -> None:
         self.new = NewFlags(len(self.inputs))
@@ -82,6 +85,8 @@ class SubsystemState:
             if not isinstance(e, EvalError) or not beh.has_error_condition:
                 raise e
             self.fail(e)
+            if self.condition_failed is not None:
+                self.condition_failed(e)
 
         self.conds = end_conditions(beh.conditions, self.vars, self.failed is not None, fail)
         self.stop_value = any(self.conds.values())

@@ -66,8 +66,8 @@ def check_switch_row(row: SwitchRow, run: BehaviourRun) -> None:
 
 
 def check_ending_row(row: EndingRow, run: BehaviourRun) -> None:
-    """Agent `errh` (error-condition-path), `errv` (error-condition-by-value) or `erru`
-    (unhandled-failure-stops)."""
+    """Agent `errh` (error-condition-path), `errv` (error-condition-by-value), `errt`
+    (failing-condition-is-an-error) or `erru` (unhandled-failure-stops)."""
     if row.id == "error-condition-path":
         assert run.errors == [("E802", True)], run.errors
         assert run.switches == [("divide", "check", {"never": False, "failed": True}),
@@ -82,6 +82,12 @@ def check_ending_row(row: EndingRow, run: BehaviourRun) -> None:
             run.switches
         assert run.iterations == {"watch": 3, "alarm": 1}, run.iterations
         assert run.ended and run.stopped is None
+    elif row.id == "failing-condition-is-an-error":
+        assert run.errors == [("E802", True)], run.errors
+        assert run.switches == [("divide", "check", {"done": False, "failed": True}),
+                                ("check", None, {"kept": True})], run.switches
+        assert run.iterations == {"divide": 2, "check": 1}, run.iterations
+        assert run.ended and run.stopped is None
     else:
         assert row.id == "unhandled-failure-stops"
         assert run.errors == [("E802", False)], run.errors
@@ -92,4 +98,4 @@ def check_ending_row(row: EndingRow, run: BehaviourRun) -> None:
 
 
 ENDING_AGENTS = {"error-condition-path": "errh", "error-condition-by-value": "errv",
-                 "unhandled-failure-stops": "erru"}
+                 "failing-condition-is-an-error": "errt", "unhandled-failure-stops": "erru"}

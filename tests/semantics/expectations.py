@@ -247,6 +247,10 @@ ENDING_ROWS: tuple[EndingRow, ...] = (
     EndingRow("error-condition-by-value",
               "an error condition that holds by its own expression ends the behaviour like a "
               "terminal one, and the switches can tell which condition ended it"),
+    EndingRow("failing-condition-is-an-error",
+              "a terminal condition that fails to evaluate (division by zero) does not hold; "
+              "the failure makes the behaviour's error conditions hold, so the switch that "
+              "names the error condition is taken, not the terminal one's"),
     EndingRow("unhandled-failure-stops",
               "an operation that fails in a behaviour without an error condition stops the "
               "run with E802 (interpreter: the run ends with reason `error`; ROS 2: the node "
@@ -288,6 +292,25 @@ VALUE_ROWS: tuple[ValueRow, ...] = (
     ValueRow("floor(-2.5)", "float", -3.0, why="floor rounds down, returns a float"),
     ValueRow("ceil(-2.5)", "float", -2.0, why="ceil rounds up, returns a float"),
     ValueRow("1 + 2 == 3 and not (2 < 1)", "bool", True),
+    ValueRow("(0.5 + 0.25) * 4.0", "float", 3.0, why="the parenthesised sum first"),
+    ValueRow("(1 + 2) / 2", "float", 1.5, why="an int sum, then true division"),
+    ValueRow("2.0 * (once + 0.75) - 0.5", "float", 1.0,
+             why="an int and a float in parentheses make a float"),
+    ValueRow("false and 1 / once > 0.0", "bool", False,
+             why="`and` does not evaluate its right side when the left is false"),
+    ValueRow("true or 1 / once > 0.0", "bool", True,
+             why="`or` does not evaluate its right side when the left is true"),
+    ValueRow("true and 1 / once > 0.0", "bool", None, "E802",
+             "the right side is evaluated when it decides, and its failure is an error"),
+    ValueRow("false or once % 0 == 0", "bool", None, "E802",
+             "the right side is evaluated when it decides, and its failure is an error"),
+    ValueRow("(1 < 2) == (3 < 4)", "bool", True, why="comparisons' results compare as bools"),
+    ValueRow("(2 < 1) == (3 < 4)", "bool", False, why="comparisons' results compare as bools"),
+    ValueRow("(1 < 2) != (4 < 3)", "bool", True, why="comparisons' results compare as bools"),
+    ValueRow("[10, 20, 30][once + 2]", "int", 30, why="indices run from 0"),
+    ValueRow("[10, 20, 30][once - 1]", "int", None, "E802",
+             "an index below 0 is out of range (not counted from the end)"),
+    ValueRow("[10, 20, 30][once + 3]", "int", None, "E802", "an index past the end is an error"),
     ValueRow("if 1 > 2 then 1.0 else 2", "float", 2.0, why="the int branch widens to float"),
     ValueRow("[1.0, 2.0] + [3.0, 4.0]", "float[2]", (4.0, 6.0), why="element-wise"),
     ValueRow("[1.0, 2.0] * 2", "float[2]", (2.0, 4.0), why="array times number"),

@@ -327,6 +327,35 @@ def error_value_agent(name: str = "errv", hz: float = 50.0) -> str:
 """
 
 
+def failing_condition_agent(name: str = "errt", hz: float = 50.0) -> str:
+    """Agent `name`: behaviour divide counts d down from 2 and has the terminal condition
+    `done when 10 / d < 0`, which fails to evaluate (division by zero) in its second
+    iteration; its error condition `failed` (false by its expression) then holds, and the
+    switch that names it is taken (not the one of `done`)."""
+    return f"""
+  // a terminal condition that fails to evaluate
+  agent {name} {{
+    control c @ {hz} Hz {{
+      memory d: int = 2
+{_STATUS}
+      behaviour divide {{
+        update memory {{ d := d - 1 }}
+        terminal done when 10 / d < 0.0
+        error failed when false
+      }}
+      behaviour check {{
+        terminal kept when d == 0
+      }}
+      initial divide
+      switch divide -> end when done
+      switch divide -> check when failed
+      switch check -> end when kept
+    }}
+{_mon(hz)}
+  }}
+"""
+
+
 def solo_agent(name: str = "solo", hz: float = 50.0) -> str:
     """Agent `name`: one control subsystem without any channel, 3 iterations, then end."""
     return f"""
@@ -394,5 +423,6 @@ def ros_system() -> str:
     agents += [receive_agent(a, arr) for a, arr in RECEIVE_AGENTS.items()]
     agents += [send_agent(a, arr) for a, arr in SEND_AGENTS.items()]
     agents += [conditions_agent(), switching_agent(), error_agent("errh", True),
-               error_agent("erru", False), error_value_agent(), solo_agent()]
+               error_agent("erru", False), error_value_agent(), failing_condition_agent(),
+               solo_agent()]
     return system("sem", *agents)

@@ -249,7 +249,7 @@ def test_switch_row(switching: InterpRun, row: SwitchRow) -> None:
 def test_ending_row(work: Path, row: EndingRow) -> None:
     agent = ENDING_AGENTS[row.id]
     text = {"errh": systems.error_agent("errh", True), "erru": systems.error_agent("erru", False),
-            "errv": systems.error_value_agent()}[agent]
+            "errv": systems.error_value_agent(), "errt": systems.failing_condition_agent()}[agent]
     run = simulate(systems.write(work, agent, systems.system("e", text)), until=2.0)
     if row.id == "unhandled-failure-stops":
         assert run.reason == "error" and run.codes == ["E802"], (run.reason, run.codes)

@@ -21,7 +21,7 @@ from tests.semantics.nodecode_runner import NodeRun, node_module, run_node
 
 AGENTS = {"sw": systems.switching_agent(), "errh": systems.error_agent("errh", True),
           "erru": systems.error_agent("erru", False), "errv": systems.error_value_agent(),
-          "solo": systems.solo_agent()}
+          "errt": systems.failing_condition_agent(), "solo": systems.solo_agent()}
 
 
 def _node(tmp_path: Path, agent: str) -> dict[str, object]:

@@ -70,7 +70,7 @@ RUNS: dict[str, tuple[list[str], float, tuple[str, ...]]] = {
     "slow-producer": (list(MODE_AGENTS), RUN, _rates({a: (SLOW, FAST) for a in MODE_AGENTS})),
     "receive": (list(RECEIVE_AGENTS), RUN, ()),
     "send": (list(SEND_AGENTS), RUN, ()),
-    "behaviours": (["cond", "sw", "errh", "errv", "erru", "solo"], 10.0, ()),
+    "behaviours": (["cond", "sw", "errh", "errv", "errt", "erru", "solo"], 10.0, ()),
 }
 
 

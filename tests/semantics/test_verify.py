@@ -342,6 +342,9 @@ def test_ending_row(work: Path, row: EndingRow) -> None:
     if row.id == "error-condition-path":
         space = _space(work, "errh", systems.system("e", systems.error_agent("errh", True)))
         sub, path = "errh.c", [("divide", "check"), ("check", None)]
+    elif row.id == "failing-condition-is-an-error":
+        space = _space(work, "errt", systems.system("e", systems.failing_condition_agent()))
+        sub, path = "errt.c", [("divide", "check"), ("check", None)]
     else:
         space = _space(work, "errv", systems.system("e", systems.error_value_agent()))
         sub, path = "errv.c", [("watch", "alarm"), ("alarm", None)]
