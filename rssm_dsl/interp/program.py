@@ -402,8 +402,11 @@ class _Builder:
             rt.effects[i] = _next_iteration(s)
             if cond.constant is not True:
                 rt.guards[i] = lambda: not s.stop()
-                if s.condition_failed is None:   # t_4 and t_out leave the same place
-                    s.condition_failed = _condition_failed(rt, s, rt.net.transitions[i].pre[0])
+                ft = rt.net.transitions[i]     # t_4 and t_out leave the same place
+                if ft.behaviour is not None:
+                    s.condition_places[ft.behaviour] = rt.net.places[ft.pre[0]].name
+                if s.condition_failed is None:
+                    s.condition_failed = _condition_failed(rt, s)
         elif cond.kind is CondKind.STOP:
             rt.effects[i] = _behaviour_ends(s)
             if cond.constant is not True:
@@ -445,12 +448,12 @@ class _Builder:
             rt.guards[i] = lambda: not any(g() for g in earlier)
 
 
-def _condition_failed(rt: Runtime, s: SubsystemState, p: int) -> Callable[[EvalError], None]:
-    """A terminal or error condition failed to evaluate at the end of an iteration (in place
-    ``p``), in a behaviour with an error condition: recorded as an operation's failure is."""
-    place = rt.net.places[p].name
-
+def _condition_failed(rt: Runtime, s: SubsystemState) -> Callable[[EvalError], None]:
+    """A terminal or error condition failed to evaluate at the end of an iteration, in a
+    behaviour with an error condition: recorded as an operation's failure is, at the place
+    where the behaviour's conditions are tested."""
     def record(err: EvalError) -> None:
+        place = s.condition_places.get(s.behaviour or "", "")
         rt.emit({"event": "error", "code": err.code, "message": err.message,
                  "span": str(err.span), "subsystem": s.id, "place": place, "handled": True})
     return record

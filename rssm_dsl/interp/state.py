@@ -58,6 +58,7 @@ class SubsystemState:
     # called with a terminal or error condition that failed to evaluate (handled: the
     # error conditions hold); the runtime records it in the trace as it does an operation's
     condition_failed: Callable[[EvalError], None] | None = None
+    condition_places: dict[str, str] = field(default_factory=dict)   # behaviour -> its place
 
     def __post_init__(self) -> None:
         self.new = NewFlags(len(self.inputs))

@@ -231,3 +231,75 @@ def test_clauses_over_twenty_inputs_give_the_cases_they_decide(tmp_path: Path) -
 
 def test_the_paper_example_too() -> None:
     assert _check(EXAMPLES / "lwr4_circle.rssm", "a1.e.lwr") == 2 * 2 ** 2
+
+
+TWO_AT_ONCE = """system twice {
+  agent hub {
+    control c @ 10 Hz {
+      input a: int from pa.c blocking
+      input b: int from pb.c nonblocking
+      memory both: int = 0
+      memory only_a: int = 0
+      memory only_b: int = 0
+      memory none: int = 0
+      memory sum: int = 0
+      behaviour run {
+        update memory {
+          case new(a) and new(b):
+            both := both + 1
+            sum := sum + a + b
+          case new(a) and not new(b):
+            only_a := only_a + 1
+          case new(b) and not new(a):
+            only_b := only_b + 1
+          otherwise:
+            none := none + 1
+        }
+        terminal stop when both + only_a + only_b + none >= 6 and sum > 0
+      }
+      initial run
+      switch run -> end when stop
+    }
+  }
+  agent pa {
+    control c @ 10 Hz {
+      memory k: int = 0
+      output a: int to hub.c nonblocking
+      behaviour go {
+        update a { a := k + 1 }
+        update memory { k := k + 1 }
+        terminal never when false
+      }
+      initial go
+    }
+  }
+  agent pb {
+    control c @ 10 Hz {
+      output b: int to hub.c nonblocking
+      behaviour once {
+        update b { b := 100 }
+        terminal sent when true
+      }
+      initial once
+      switch once -> end when sent
+    }
+  }
+}
+"""
+
+
+@pytest.mark.parametrize("seed", [0, 1, 2, 3])
+def test_two_inputs_received_in_one_iteration_are_both_new(tmp_path: Path, seed: int) -> None:
+    """b's producer sends one sample and ends; a's sends every iteration and the hub waits
+    for it. The iteration after the receive that took b's one sample (and a's sample) sees
+    new(a) and new(b) both true: exactly one `both` case, with b's value; every other
+    iteration but the first sees new(a) alone (new(b) was used and is false again); the
+    first sees nothing new."""
+    from tests.semantics.interp_runner import simulate
+
+    path = tmp_path / "twice.rssm"
+    path.write_text(TWO_AT_ONCE)
+    run = simulate(path, until=3.0, seed=seed)
+    m = run.memory["hub.c"]
+    assert (m["both"], m["only_a"], m["only_b"], m["none"]) == (1, 4, 0, 1), m
+    assert m["sum"] > 100                     # b's value and a's fresh one were read

@@ -3,6 +3,7 @@ behaviour switching, deadlocks, Ctrl-C."""
 
 from __future__ import annotations
 
+import itertools
 import shutil
 from pathlib import Path
 
@@ -237,3 +238,82 @@ def test_spec_folder_copy_runs_the_camera_example(tmp_path: Path) -> None:
     assert rt.devices["a1.R.camera"].steps == 91 and rt.devices["a1.E.motor"].steps == 301
     pan = rt.subsystems["a1.e.pan"]
     assert abs(pan.vars["command"] - rt.devices["a1.E.motor"].vars["angle"]) <= 0.02 + 1e-9
+
+
+def _solo(name: str, hz: str = "") -> str:
+    return f"""
+  agent {name} {{
+    control c{hz} {{
+      memory n: int = 0
+      behaviour go {{
+        update memory {{ n := n + 1 }}
+        terminal never when false
+      }}
+      initial go
+    }}
+  }}"""
+
+
+@pytest.mark.parametrize("eager", [True, False])
+def test_the_seeded_choice_reaches_each_of_three_enabled_transitions(tmp_path: Path,
+                                                                     eager: bool) -> None:
+    """Three agents whose control subsystems can all start at once: over seeds, each of the
+    three is the first to enter its behaviour (the choice is among all that are enabled, not
+    the first two, the lowest or the last)."""
+    comp = compile_text(tmp_path, "system three {" + "".join(_solo(x, " @ 10 Hz") for x in "abc")
+                        + "\n}\n")
+    first: set[str] = set()
+    for seed in range(24):
+        rt = runtime(comp)
+        rt.tracer = TraceWriter(tmp_path / f"{seed}.jsonl")
+        Simulator(rt, SimOptions(seed=seed, max_steps=60, eager=eager)).run()
+        rt.tracer.close()
+        enters = [e["subsystem"] for e in read_trace(tmp_path / f"{seed}.jsonl")
+                  if e["event"] == "enter"]
+        assert sorted(enters) == ["a.c", "b.c", "c.c"], enters
+        first.add(str(enters[0]))
+    assert first == {"a.c", "b.c", "c.c"}
+
+
+def _starts(tmp_path: Path, mode: str, eager: bool) -> tuple[dict[str, list[float]], object]:
+    """The times at which each paced subsystem of a 10 Hz / 30 Hz pair starts iterations."""
+    comp = compile_text(tmp_path, "system rates {" + _solo("slow", " @ 10 Hz")
+                        + _solo("fast", " @ 30 Hz") + "\n}\n")
+    wall = mode == "concurrent"
+    rt = runtime(comp, RunConfig(base_dir=tmp_path, wall_clock=wall))
+    gated = {rt.net.transitions[t].name: rt.net.transitions[t].subsystem
+             for t, g in enumerate(rt.gates) if g is not None}
+    rt.tracer = TraceWriter(tmp_path / f"{mode}-{eager}.jsonl")
+    result = Simulator(rt, SimOptions(mode=mode, until=0.5, eager=eager)).run()
+    rt.tracer.close()
+    starts: dict[str, list[float]] = {"slow.c": [], "fast.c": []}
+    for e in read_trace(tmp_path / f"{mode}-{eager}.jsonl"):
+        if e["event"] == "fire" and e["transition"] in gated:
+            starts[str(gated[str(e["transition"])])].append(float(e["time"]))  # type: ignore[arg-type]
+    return starts, result
+
+
+@pytest.mark.parametrize("eager", [True, False])
+def test_subsystems_at_different_rates_start_on_their_own_ticks(tmp_path: Path,
+                                                                eager: bool) -> None:
+    """On the simulated clock, with or without eager local steps: the 10 Hz subsystem starts
+    its iterations at 0, 0.1, ..., 0.5 and the 30 Hz one at every 1/30 s, each exactly on
+    its tick, neither held back by the other nor running ahead."""
+    starts, _ = _starts(tmp_path, "deterministic", eager)
+    assert starts["slow.c"] == pytest.approx([k / 10 for k in range(6)])
+    assert starts["fast.c"] == pytest.approx([k / 30 for k in range(16)])
+
+
+def test_concurrent_mode_never_starts_an_iteration_before_its_tick(tmp_path: Path) -> None:
+    """On the wall clock the k-th iteration of a subsystem at f Hz starts at k/f or later (a
+    busy machine makes it late and skips ticks, never early)."""
+    starts, result = _starts(tmp_path, "concurrent", True)
+    assert result.reason == "until"  # type: ignore[attr-defined]
+    for sid, hz in (("slow.c", 10), ("fast.c", 30)):
+        times = starts[sid]
+        assert 1 <= len(times) <= 0.5 * hz + 1, (sid, times)
+        ticks = [round(t * hz, 6) for t in times]
+        # one start per tick at most: each in a later tick's period than the one before
+        assert all(int(b + 1e-6) > int(a + 1e-6)
+                   for a, b in itertools.pairwise(ticks)), ticks
+        assert all(t >= k - 1e-6 for k, t in enumerate(ticks)), ticks

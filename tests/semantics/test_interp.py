@@ -256,3 +256,5 @@ def test_ending_row(work: Path, row: EndingRow) -> None:
     else:
         assert run.reason == "until", run.message    # c ended, e.mon runs on
     check_ending_row(row, behaviour_run(run, f"{agent}.c"))
+    if row.id == "failing-condition-is-an-error":   # where: the place that tests divide's
+        assert [e["place"] for e in run.of("error")] == ["p[errt,c,divide,2]"]
