@@ -24,7 +24,7 @@ from rssm_core.records import dataclass
 from rssm_dsl.diagnostics import Diagnostic, DiagnosticBag, Severity
 from rssm_dsl.lsp.incremental import Reparsed, ShiftMap, State, map_diagnostic, map_module, reparse
 from rssm_dsl.lsp.index import Occurrence, SymbolIndex, build_index, system_id
-from rssm_dsl.lsp.paths import path_of_display
+from rssm_dsl.lsp.paths import path_of_display, resolved
 from rssm_dsl.lsp.positions import LineIndex
 from rssm_dsl.lsp.reindex import AgentEdit, reindex
 from rssm_dsl.lsp.symbols import AgentOutlines
@@ -347,7 +347,7 @@ def _analyze_text(uri: str, path: Path, display: str, text: str, version: int | 
         return Analysis(uri, version, path, display, text, lines, LazyModule(None), None,
                         (diag,), LazyIndex(None), kept_system)
     overrides = dict(overrides)
-    overrides[path.resolve()] = text
+    overrides[resolved(path) or path] = text
     state = previous.incremental if previous is not None else None
     if state is not None and previous is not None:
         try:
@@ -399,13 +399,13 @@ def _imports_unchanged(program: Program, display: str, overrides: dict[Path, str
     for shown, source in program.sources.items():
         if shown == display or shown.startswith(display + "#"):
             continue
-        path = path_of_display(shown).resolve()
+        path = path_of_display(shown)
         if path in overrides:
             now = overrides[path]
         else:
             try:
                 now = path.read_text(encoding="utf-8").removeprefix("\ufeff")
-            except (OSError, UnicodeDecodeError):
+            except (OSError, ValueError):   # ValueError: not UTF-8, a NUL in the path
                 return False
         if now != source.text:
             return False

@@ -35,9 +35,20 @@ class LspLinesWorkspace(Workspace):
     def _create_text_document(self, doc_uri: str, source: str | None = None,
                               version: int | None = None,
                               language_id: str | None = None) -> TextDocument:
-        return LspLinesDocument(doc_uri, source=source, version=version,
-                                language_id=language_id, sync_kind=self._sync_kind,
-                                position_codec=self._position_codec)
+        def document(uri: str) -> LspLinesDocument:
+            return LspLinesDocument(uri, source=source, version=version,
+                                    language_id=language_id, sync_kind=self._sync_kind,
+                                    position_codec=self._position_codec)
+
+        try:
+            return document(doc_uri)
+        except ValueError:
+            # a URI the URL parser refuses (`file://[x/a.rssm`: an invalid IPv6 host): the
+            # document is opened all the same (the server names its file from the URI on
+            # its own, paths.path_of_uri); only pygls's `path` is made up
+            doc = document("untitled:document")
+            doc.uri = doc_uri
+            return doc
 
 
 def use_lsp_lines(workspace: Workspace) -> None:

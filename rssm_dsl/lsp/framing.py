@@ -40,7 +40,10 @@ INVALID_REQUEST = -32600
 CHUNK = 64 * 1024
 
 _HEADER_LINE = re.compile(rb"([!#$%&'*+.^_`|~0-9A-Za-z-]+):[ \t]*([^\r\n]*?)[ \t]*\r\n")
-_LENGTH = re.compile(rb"[0-9]{1,20}")
+_LENGTH = re.compile(rb"[0-9]+")
+# A length of more digits (leading zeros aside) is taken as this one: over any limit, and
+# never given to int() (which refuses 4,300 digits) nor to a C size (2**63 overflows one).
+TOO_MANY_BYTES = 10**20
 _RESYNC = re.compile(rb"content-length:[ \t]*[0-9]+[ \t]*\r\n", re.IGNORECASE)
 _TAIL = 64   # bytes kept between chunks while looking for a header (longer than one)
 # the start of a header line, up to its CR: what a body cut inside the next header ends with
@@ -116,7 +119,8 @@ class Framer:
     def _skip(self) -> bool:
         assert self.skip is not None
         n = self.skip
-        m = _RESYNC.search(self.buf, 0, n + _TAIL)
+        # (n may be any announced length: a bound over len(buf) would overflow a C size)
+        m = _RESYNC.search(self.buf, 0, min(n + _TAIL, len(self.buf)))
         if m is not None and m.start() < n:      # the announced length was a lie
             del self.buf[:m.start()]
             self.skip = None
@@ -165,7 +169,8 @@ class Framer:
         assert length is not None
         del self.buf[:end + 4]
         if length > self.max_bytes:
-            out.append(FramingError(f"a message of {length} bytes is larger than the limit "
+            size = f"{length}" if length < TOO_MANY_BYTES else f"{TOO_MANY_BYTES} or more"
+            out.append(FramingError(f"a message of {size} bytes is larger than the limit "
                                     f"of {self.max_bytes} bytes", INVALID_REQUEST))
             self.skip = length
             return True
@@ -200,13 +205,19 @@ def _content_length(head: bytes) -> tuple[int | None, str | None]:
         pos = m.end()
         if m.group(1).lower() != b"content-length":
             continue
-        value = int(m.group(2))
+        value = _length_value(m.group(2))
         if length is not None and value != length:
             return None, "two different Content-Length headers"
         length = value
     if length is None:
         return None, "the headers have no Content-Length"
     return length, None
+
+
+def _length_value(digits: bytes) -> int:
+    """The value of a Content-Length's digits; TOO_MANY_BYTES for more than 20 of them."""
+    significant = digits.lstrip(b"0")
+    return int(significant or b"0") if len(significant) <= 20 else TOO_MANY_BYTES
 
 
 def _header_problem(m: re.Match[bytes] | None) -> str | None:
@@ -288,7 +299,15 @@ async def serve(read: Callable[[int], bytes], protocol: Dispatcher,
         chunk = await reader.queue.get()
         if not chunk:
             return
-        for event in framer.feed(chunk):
+        try:
+            events = framer.feed(chunk)
+        except Exception as e:   # a bug of the framer: not the end of the session
+            log.error("cannot frame the input (%s: %s); skipping to the next header",
+                      type(e).__name__, e)
+            framer = Framer()
+            framer.junk = True
+            events = [FramingError(f"the input could not be framed ({type(e).__name__})")]
+        for event in events:
             if isinstance(event, Message):
                 dispatch(protocol, event.body, classify)
             else:

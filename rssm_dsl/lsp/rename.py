@@ -287,7 +287,7 @@ def verify(path: Path, overrides: dict[Path, str], d: Definition, new: str,
         src = before.program.sources.get(file)
         if src is None or not fe:
             continue
-        changed[path_of_display(file).resolve()] = apply_edits(src.text, fe)
+        changed[path_of_display(file)] = apply_edits(src.text, fe)
         touched = True
     if not touched:
         return

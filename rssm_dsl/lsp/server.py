@@ -65,7 +65,14 @@ from rssm_dsl.lsp.index import (
     system_id,
 )
 from rssm_dsl.lsp.jobs import Job, run_job
-from rssm_dsl.lsp.paths import is_stdlib, path_of_display, path_of_uri, uri_of_path
+from rssm_dsl.lsp.paths import (
+    file_path_of_uri,
+    is_stdlib,
+    path_of_display,
+    path_of_uri,
+    resolved,
+    uri_of_path,
+)
 from rssm_dsl.lsp.positions import UTF16, LineIndex
 from rssm_dsl.lsp.symbols import outline_json
 from rssm_dsl.semantics.loader import display_path
@@ -253,11 +260,14 @@ class RssmServer(LanguageServer):
             return []
 
     def overrides(self) -> dict[Path, str]:
+        """The open documents' texts by resolved path (paths.py gives every document one
+        that resolves; one that stopped resolving meanwhile is left out)."""
         out: dict[Path, str] = {}
         for uri in self.open_uris():
             got = self.doc_text(uri)
-            if got is not None:
-                out[path_of_uri(uri).resolve()] = got[0]
+            path = resolved(path_of_uri(uri)) if got is not None else None
+            if got is not None and path is not None:
+                out[path] = got[0]
         return out
 
     def lines_of(self, file: str, analysis: Analysis | None = None) -> LineIndex | None:
@@ -271,7 +281,7 @@ class RssmServer(LanguageServer):
                 return LineIndex(src.text)
         try:
             return LineIndex(path_of_display(file).read_text(encoding="utf-8"))
-        except (OSError, UnicodeDecodeError):
+        except (OSError, ValueError):   # ValueError: not UTF-8, a NUL in the path
             return None
 
     def location(self, span: Span, analysis: Analysis | None = None) -> lsp.Location | None:
@@ -300,9 +310,13 @@ class RssmServer(LanguageServer):
         if got is None:
             return
         text, version = got
-        path = path_of_uri(uri)
-        display = display_path(path)
-        overrides = self.overrides()
+        try:
+            path = path_of_uri(uri)
+            display = display_path(path)
+            overrides = self.overrides()
+        except Exception as e:   # a path that stopped resolving since path_of_uri checked
+            self._failed(uri, e)
+            return
         previous = self.analyses.get(uri)
         job = Job(lambda: analyze_text(uri, path, display, text, version, overrides, previous),
                   asyncio.get_running_loop(), "rssm-analysis")
@@ -420,10 +434,13 @@ class RssmServer(LanguageServer):
         changed: set[str] = set()
         everything = False
         for path, kind in changes:
-            resolved = path.resolve()
-            self.workspace_cache.pop(resolved, None)
-            changed.add(display_path(resolved))
-            if resolved.suffix != ".rssm" or kind is not lsp.FileChangeType.Changed:
+            real = resolved(path)
+            if real is None:   # e.g. a symbolic link loop now: what read it must look again
+                everything = True
+                continue
+            self.workspace_cache.pop(real, None)
+            changed.add(display_path(real))
+            if real.suffix != ".rssm" or kind is not lsp.FileChangeType.Changed:
                 everything = True
         for uri, a in list(self.analyses.items()):
             if everything or a.program is None or not changed.isdisjoint(a.program.sources):
@@ -512,8 +529,8 @@ class RssmServer(LanguageServer):
             if len(files) >= MAX_WORKSPACE_FILES:
                 break
         for p in files:
-            rp = p.resolve()
-            if rp in open_paths:
+            rp = resolved(p)
+            if rp is None or rp in open_paths:   # None: e.g. a symbolic link loop
                 continue
             try:
                 mtime = rp.stat().st_mtime
@@ -595,7 +612,8 @@ def initialized(ls: RssmServer, params: lsp.InitializedParams) -> None:
 
 @server.feature(lsp.WORKSPACE_DID_CHANGE_WATCHED_FILES)
 def did_change_watched_files(ls: RssmServer, params: lsp.DidChangeWatchedFilesParams) -> None:
-    ls.files_changed([(path_of_uri(c.uri), c.type) for c in params.changes])
+    changes = [(file_path_of_uri(c.uri), c.type) for c in params.changes]
+    ls.files_changed([(path, kind) for path, kind in changes if path is not None])
 
 
 @server.feature(lsp.SHUTDOWN)
