@@ -39,10 +39,6 @@ from rssm_dsl.verify.dataplan import ANY, MAX_VALUATIONS, Outcome, Step, ValuePl
 from rssm_dsl.verify.report import Chosen
 from rssm_dsl.verify.slicing import channels
 
-# a value that every write leaves unknown is still tracked when it has at most this many
-# values (see _Values._determined)
-ANY_KEPT = 4
-
 
 def valued(name: str, i: int) -> str:
     """The name of a variant: ``t[1,c,w,4]`` -> ``t^d[1,c,w,4,3]``."""
@@ -60,7 +56,6 @@ def _fork_step(plan: ValuePlan, name: str, known: tuple[bool | None, ...] | None
 class _Values:
     def __init__(self, t: TrackedNet, plan: ValuePlan) -> None:
         self.t, self.plan = t, plan
-        self.any_only: set[str] = set()    # tracked, but every write leaves them unknown
         net = t.net
         inputs = dict(t.source.new_sites.inputs)
         self.steps: dict[int, Step] = {}
@@ -95,7 +90,6 @@ class _Values:
         want = {r for u, s in self.steps.items() if s.holds is not None
                 and (within is None or net.transitions[u].subsystem in within)
                 for r in s.reads if r in present} | (extra & present)
-        read = set(want)           # what the guards (and the property) read themselves
         writers: dict[str, list[Step]] = {}
         for s in self.steps.values():
             for w in s.writes:
@@ -126,27 +120,18 @@ class _Values:
             drop = max((x for s in over[0] for x in (*s.reads, *s.writes) if x in want),
                        key=lambda x: len(doms[x].domain))
             want.discard(drop)
-        return self._determined(want, writers, read)
+        return self._determined(want, writers)
 
-    def _determined(self, want: set[str], writers: dict[str, list[Step]],
-                    read: set[str]) -> set[str]:
+    def _determined(self, want: set[str], writers: dict[str, list[Step]]) -> set[str]:
         """Without the values that every write leaves unknown (fed by a device, computed
-        from floats...): tracking them would only multiply the states. Those of them that a
-        guard or the property reads itself and that have a few values (a bool, a small
-        enum: at most ANY_KEPT) are kept, with every write taking any value: the value is
-        then the initial one until the first write, as in a run (a load switch's reading is
-        `false` until the relay received one), and what feeds them is not tracked."""
+        from floats...): tracking them would only multiply the states."""
         doms = self.plan.vars
-        dropped: set[str] = set()
         while True:
             free = {x for x in want if writers.get(x) and not any(
                 _determines(s, x, want, doms) for s in writers[x])}
             if not free:
-                break
+                return want
             want -= free
-            dropped |= free
-        self.any_only = {x for x in dropped & read if len(doms[x].domain) <= ANY_KEPT}
-        return want | self.any_only
 
 
 def _determines(s: Step, x: str, want: set[str], doms: Mapping[str, Any]) -> bool:
@@ -236,9 +221,7 @@ def tracked_labels(t: TrackedNet, plan: ValuePlan, extra: frozenset[str],
     if only the guards of the subsystems ``within`` counted: what a slice of them needs
     from outside."""
     v = _Values(t, plan)
-    cone = v.cone(v.present(), extra, within)
-    # a value every write leaves unknown needs no producer: any value is what it gets
-    return frozenset(plan.vars[k].label for k in cone - v.any_only)
+    return frozenset(plan.vars[k].label for k in v.cone(v.present(), extra, within))
 
 
 def _show(d: Any) -> str:

@@ -15,7 +15,6 @@ from tests.interp.conftest import ROOT, SPECS
 ACCEPTANCE = ROOT / "tests" / "verify" / "acceptance"
 NEVER_DONE = ACCEPTANCE / "conveyor_cell_never_done.rssm"
 COUNTER = SPECS / "counter_bound.rssm"
-VERIFY_SPECS = ROOT / "tests" / "verify" / "specs"
 
 
 def rssmc(*args: str | Path) -> subprocess.CompletedProcess[str]:
@@ -127,8 +126,8 @@ def test_a_counterexample_that_misses_the_violation_is_not_reproduced(tmp_path: 
     assert code == 2, out
     assert out["replay"]["reproduced"] is False
     assert "`conveyor.c in offer` does not hold" in out["replay"]["message"]
-    assert ("the violation of property offer_ends is not reproduced"
-            in out["replay"]["message"])
+    assert out["replay"]["message"].endswith("the violation of property offer_ends is not "
+                                             "reproduced")
 
 
 def test_a_counterexample_of_a_property_the_spec_does_not_state(tmp_path: Path) -> None:
@@ -247,19 +246,3 @@ def test_a_response_violated_on_a_slice_fed_by_a_device_replays(tmp_path: Path) 
         "stops_then_feeds": False}
     code, out = replay(BEAM_RELAY, path)
     assert code == 1 and out["replay"]["reproduced"] is True, out["replay"]
-
-
-def test_a_bool_a_device_feeds_is_false_until_a_reading_arrives(tmp_path: Path) -> None:
-    """switch_reading: the pad locks on its load switch's `occupied`, a bool fed by a device
-    through a relay. The verifier tracks it (any value at each receive, its initial false
-    before): the pad cannot lock before the relay has run (`locks_only_after_the_relay_sent`
-    holds; as a free choice it was violated in the pad's first iteration), and the violation
-    of `never_locks` replays as a run, no firing forced, the reading only set as chosen."""
-    spec = VERIFY_SPECS / "switch_reading.rssm"
-    path = tmp_path / "report.json"
-    report = verified(spec, path)
-    holds = {p["name"]: p["holds"] for p in report["user_properties"]}
-    assert holds == {"locks_only_after_the_relay_sent": True, "never_locks": False}
-    code, out = replay(spec, path)
-    assert code == 1, out
-    assert out["replay"]["reproduced"] is True and out["replay"]["forced"] == 0, out["replay"]
