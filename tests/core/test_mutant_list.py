@@ -19,7 +19,7 @@ def _mutants() -> list:  # type: ignore[type-arg]
     module = importlib.util.module_from_spec(spec)
     sys.modules[spec.name] = module
     spec.loader.exec_module(module)
-    return list(module.MUTANTS)
+    return list(module.ALL)
 
 
 @pytest.mark.parametrize("mutant", _mutants(), ids=lambda m: m.name)
