@@ -14,6 +14,15 @@ EXAMPLES = ROOT / "examples"
 FAR_EARLIER = 60.0
 
 
+def sigint_default() -> None:
+    """``preexec_fn`` of a child a test stops with Ctrl-C (SIGINT): a shell's background job
+    (``pytest &``, a CI runner) ignores SIGINT and its children inherit that, so the child
+    would never see the signal; reset to the default, Python turns it into KeyboardInterrupt."""
+    import signal
+
+    signal.signal(signal.SIGINT, signal.SIG_DFL)
+
+
 LONG = "RSSM_LONG_TESTS"
 
 

@@ -13,6 +13,7 @@ from pathlib import Path
 from rssm_dsl.hpn.flatten import flatten
 from rssm_dsl.interp.trace import read_trace
 from rssm_dsl.verify import VerifyOptions, verify
+from tests.conftest import sigint_default
 from tests.interp.conftest import EXAMPLES, LWR_STATE, ROOT, SPECS, compiled
 
 CONSTANT = "a1.E.lwr=rssm_stdlib.devices.constant:ConstantDevice"
@@ -238,7 +239,8 @@ def test_ctrl_c_flushes_the_trace(tmp_path: Path) -> None:
     p = subprocess.Popen([sys.executable, "-m", "rssm_dsl", "simulate",
                           str(EXAMPLES / "relay_blocking.rssm"), "--mode", "concurrent",
                           "--trace", str(trace)], cwd=ROOT, stdout=subprocess.PIPE,
-                         stderr=subprocess.PIPE, text=True)
+                         stderr=subprocess.PIPE, text=True,
+                         preexec_fn=sigint_default)
     deadline = time.monotonic() + 30
     while (not trace.exists() or trace.stat().st_size == 0) and time.monotonic() < deadline:
         time.sleep(0.1)

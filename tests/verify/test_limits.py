@@ -23,7 +23,7 @@ from rssm_dsl.verify.budget import (
     physical_memory,
     run_limited,
 )
-from tests.conftest import EXAMPLES, FAR_EARLIER, ROOT
+from tests.conftest import EXAMPLES, FAR_EARLIER, ROOT, sigint_default
 
 EXIT_VIOLATED, EXIT_INCONCLUSIVE, EXIT_WITHOUT_PROGRESS, EXIT_INTERRUPTED = 1, 3, 4, 130
 
@@ -114,7 +114,8 @@ def test_no_progress_check_is_not_a_plain_success() -> None:
 def test_ctrl_c_prints_the_partial_report(ring: Path) -> None:
     p = subprocess.Popen([sys.executable, "-m", "rssm_dsl", "verify", str(ring), "--timeout",
                           "60", "--reduction", "on", "--format", "json"], cwd=ROOT,
-                         stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True)
+                         stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True,
+                         preexec_fn=sigint_default)
     time.sleep(3)
     sent = time.monotonic()
     p.send_signal(signal.SIGINT)

@@ -25,7 +25,7 @@ from typer.testing import CliRunner
 from rssm_dsl.cli import make_app
 from rssm_dsl.synth import lean_ring_system
 from rssm_dsl.verify.budget import Budget, LimitReached
-from tests.conftest import EXAMPLES, FAR_EARLIER, ROOT
+from tests.conftest import EXAMPLES, FAR_EARLIER, ROOT, sigint_default
 
 EXIT_USAGE, EXIT_INCONCLUSIVE, EXIT_INTERRUPTED = 2, 3, 130
 SPEC = EXAMPLES / "verify" / "deadlock_pair.rssm"     # small: every phase is quick
@@ -262,7 +262,8 @@ def slowed_cli(tmp_path: Path, mode: str, *args: str) -> subprocess.Popen[str]:
     script = tmp_path / "slowed.py"
     script.write_text(SLOWED_CLI)
     return subprocess.Popen([sys.executable, str(script), mode, str(SPEC), *args], cwd=ROOT,
-                            stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True)
+                            stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True,
+                            preexec_fn=sigint_default)
 
 
 def test_the_memory_limit_binds_in_a_phase_that_does_not_check(tmp_path: Path) -> None:
