@@ -271,6 +271,7 @@ MUTANTS = (
 )
 
 SURVIVED = "SURVIVED"
+ROS = False          # --ros: the ros2-marked tests too
 # the mutants written by someone who had not read the tests (issue 33's audit)
 ALL = MUTANTS + tuple(Mutant(*fields) for fields in AUDIT)
 
@@ -291,8 +292,9 @@ def apply(m: Mutant, root: Path) -> None:
 def run_tests(root: Path, tests: list[str], timeout: float) -> tuple[str | None, float]:
     """The first failing test (None when every test passed) and the seconds it took."""
     env = dict(os.environ, PYTHONPATH=str(root), PYTHONDONTWRITEBYTECODE="1")
+    select = [x for x in SELECT if x not in ("-m", "not ros2")] if ROS else SELECT
     cmd = [sys.executable, "-m", "pytest", "-x", "-q", "-p", "no:cacheprovider",
-           "--no-header", "-rf", *SELECT, *tests]
+           "--no-header", "-rf", *select, *tests]
     start = time.perf_counter()
     try:
         done = subprocess.run(cmd, cwd=root, env=env, capture_output=True, text=True,
@@ -315,7 +317,7 @@ def killed(m: Mutant, base: Path, tmp: Path, tests: list[str],
     killing test, or SURVIVED, NOT APPLIED, FLAKY) and the seconds it took. A test that kills
     must pass again on the unmutated copy, or it is flaky and kills nothing."""
     work = tmp / m.name
-    shutil.copytree(base, work)
+    shutil.copytree(base, work, symlinks=True)
     try:
         apply(m, work)
     except LookupError as e:
@@ -339,7 +341,12 @@ def main() -> int:
     ap.add_argument("--timeout", type=float, default=900.0, help="seconds per mutant")
     ap.add_argument("--jobs", type=int, default=1, help="mutants run at once")
     ap.add_argument("--list", action="store_true")
+    ap.add_argument("--ros", action="store_true",
+                    help="run the ros2-marked tests too, in the repository's ROS venv "
+                         "(.cache/ros2-venv, linked into each copy)")
     args = ap.parse_args()
+    global ROS
+    ROS = args.ros
     chosen = [m for m in ALL if args.only in m.name]
     if args.list:
         for m in chosen:
@@ -352,6 +359,9 @@ def main() -> int:
     with tempfile.TemporaryDirectory(prefix="rssm-mutants-") as tmp:
         base = Path(tmp) / "repo"
         shutil.copytree(ROOT, base, ignore=_IGNORE)
+        if ROS and (ROOT / ".cache" / "ros2-venv").is_dir():
+            (base / ".cache").mkdir(exist_ok=True)
+            (base / ".cache" / "ros2-venv").symlink_to(ROOT / ".cache" / "ros2-venv")
         clean, took = run_tests(base, tests, args.timeout)
         if clean is not None:
             print(f"the unmutated code fails {clean}: fix that first")
