@@ -25,6 +25,7 @@ import importlib
 import importlib.machinery
 import importlib.util
 import inspect
+import stat
 import sys
 import threading
 from collections.abc import Callable, Sequence
@@ -52,6 +53,11 @@ class ModuleMissing(BindingError):
     system runs, not here)."""
 
 
+class ModuleUnreadable(BindingError):
+    """The source of a binding's module is too large or too deeply nested for the checker
+    to read (:func:`static_lookup`): what it defines is not checked."""
+
+
 def install_stdlib_package() -> ModuleType:
     """Make the stdlib folder importable as ``rssm_stdlib`` (idempotent)."""
     with _lock:
@@ -73,10 +79,23 @@ def install_stdlib_package() -> ModuleType:
         return module
 
 
+def _dotted(name: str) -> bool:
+    """``name`` is a dotted Python name (``pkg.module``): nothing a path could be made of
+    (``/``, ``..``, a drive), so that it is looked up only as a module."""
+    return all(part.isidentifier() for part in name.split("."))
+
+
 def split_binding(binding: str) -> tuple[str, str]:
+    """The module and the attribute of ``module:attribute``, each a dotted Python name; a
+    BindingError otherwise (E208 where the binding is declared)."""
     module, sep, attr = binding.partition(":")
     if not sep or not module or not attr:
         raise BindingError(f'binding "{binding}" is not of the form module:attribute')
+    if not _dotted(module) or not _dotted(attr):
+        raise BindingError(f'binding "{binding}" is not of the form module:attribute: '
+                           f'{"the module" if not _dotted(module) else "the attribute"} is not '
+                           "a dotted Python name",
+                           "write the module as Python imports it (pkg.module), not as a path")
     return module, attr
 
 
@@ -117,6 +136,9 @@ def _not_found(name: str, dirs: Sequence[Path]) -> ModuleMissing:
 
 def import_module(name: str, dirs: Sequence[Path]) -> ModuleType:
     """Import a module of a binding (see the module docstring for where it is looked up)."""
+    if not _dotted(name):
+        raise BindingError(f"'{name}' is not a dotted Python module name",
+                           "write the module as Python imports it (pkg.module), not as a path")
     top = name.split(".", 1)[0]
     try:
         if top == STDLIB_PACKAGE:
@@ -213,14 +235,17 @@ def _lookup(part: str, dirs: Sequence[Path]) -> tuple[Path | None, list[Path]] |
                 return None, []
             if package.is_dir():
                 portions.append(package)
-        except (OSError, ValueError):    # a name too long for the file system: not there
-            continue
+        except (OSError, ValueError, NotImplementedError):   # a name too long for the file
+            continue                                       # system, or not a name: not there
     return (None, portions) if portions else None
 
 
 def find_module(name: str, dirs: Sequence[Path]) -> ModuleSource:
     """The module of a binding, found as :func:`import_module` finds it, without importing
     it (nor its parent packages)."""
+    if not _dotted(name):
+        raise BindingError(f"'{name}' is not a dotted Python module name",
+                           "write the module as Python imports it (pkg.module), not as a path")
     parts = name.split(".")
     top = parts[0]
     folder: Path | None = None
@@ -283,23 +308,83 @@ def static_lookup(binding: str, dirs: Sequence[Path]) -> Definition | None:
 
 
 _OPEN = "*"                # the source may define names it does not spell out
-# file -> (its size and time when read, what it defines): one entry per file, renewed when
-# the file changes (the language server checks again at every edit)
-_parsed: dict[Path, tuple[tuple[int, int], dict[str, Definition]]] = {}
+# file -> (its size and time when read, what it defines or why it cannot be read): one entry
+# per file, renewed when the file changes (the language server checks again at every edit)
+_parsed: dict[Path, tuple[tuple[int, int], dict[str, Definition] | ModuleUnreadable]] = {}
+
+# What the checker reads of a module's source: Python's syntax tree takes some 600 bytes per
+# token, so a module is read when it is at most MAX_MODULE_BYTES long and has at most
+# MAX_MODULE_TOKENS tokens (150 MB of tree at most, a second or so); nested deeper than the
+# parser's recursion limit, it is not read either.
+MAX_MODULE_BYTES = 4 << 20
+MAX_MODULE_TOKENS = 250_000
 
 
 def _definitions(file: Path) -> dict[str, Definition] | None:
-    """The top-level names a Python source defines (None when it cannot be read)."""
+    """The top-level names a Python source defines (None when it cannot tell: the file
+    cannot be opened, or is not valid Python). ModuleUnreadable when it is too large or too
+    deeply nested to read."""
     try:
         st = file.stat()
         stamp = (st.st_size, st.st_mtime_ns)
         cached = _parsed.get(file)
         if cached is None or cached[0] != stamp:
-            tree = pyast.parse(file.read_bytes(), str(file))
-            cached = _parsed[file] = (stamp, _top_level(tree.body))
+            if not stat.S_ISREG(st.st_mode):
+                return None
+            cached = _parsed[file] = (stamp, _read_definitions(file, st.st_size))
     except (OSError, SyntaxError, ValueError):
         return None
+    if isinstance(cached[1], ModuleUnreadable):     # a new one: a raised one keeps frames
+        raise ModuleUnreadable(cached[1].message, cached[1].hint)
     return cached[1]
+
+
+def _unreadable(file: Path, why: str) -> ModuleUnreadable:
+    return ModuleUnreadable(f"the Python module {file} is {why}: what it defines is not checked",
+                            "split the module, or compute the large value at run time "
+                            "(read it from a data file) instead of writing it out as one "
+                            "expression")
+
+
+def _read_definitions(file: Path, size: int) -> dict[str, Definition] | ModuleUnreadable:
+    if size > MAX_MODULE_BYTES:
+        return _unreadable(file, f"too large to read ({size:,} bytes; at most "
+                                 f"{MAX_MODULE_BYTES:,})")
+    with file.open("rb") as f:
+        source = f.read(MAX_MODULE_BYTES + 1)
+    if len(source) > MAX_MODULE_BYTES:
+        return _unreadable(file, f"too large to read (over {MAX_MODULE_BYTES:,} bytes)")
+    # a token takes at least one byte but for the dedents, one per indented line at most
+    if len(source) > MAX_MODULE_TOKENS // 2 and _too_many_tokens(source):
+        return _unreadable(file, f"too large to read (over {MAX_MODULE_TOKENS:,} tokens)")
+    try:
+        tree = pyast.parse(source, str(file))
+    except RecursionError:
+        return _unreadable(file, "too deeply nested to read (an expression or statement "
+                                 "nested deeper than Python's parser goes)")
+    except MemoryError:
+        return _unreadable(file, "too large or too complex to read (Python's parser gave up)")
+    try:
+        return _top_level(tree.body)
+    except RecursionError:      # blocks nested past the recursion limit
+        return _unreadable(file, "too deeply nested to read")
+
+
+def _too_many_tokens(source: bytes) -> bool:
+    """Whether ``source`` has more than MAX_MODULE_TOKENS tokens, read as a stream (what
+    the tokenizer cannot read is left to the parser)."""
+    import io
+    import tokenize
+
+    count = 0
+    try:
+        for _ in tokenize.tokenize(io.BytesIO(source).readline):
+            count += 1
+            if count > MAX_MODULE_TOKENS:
+                return True
+    except (tokenize.TokenError, SyntaxError, ValueError):
+        return False
+    return False
 
 
 def _top_level(body: list[pyast.stmt]) -> dict[str, Definition]:

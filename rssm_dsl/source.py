@@ -22,6 +22,11 @@ from rssm_core.records import dataclass
 
 _BARE_CR = re.compile(r"\r(?!\n)")
 
+# The most the compiler reads as one piece of text: a spec file (rssm_dsl/semantics/loader.py,
+# E004), and one line of a trace or one JSON document given to `simulate --replay` or
+# `render --trace` (rssm_dsl/interp/trace.py, E852). Nothing larger is ever held whole.
+MAX_FILE_BYTES = 8 * 1024 * 1024
+
 
 def lexer_text(text: str) -> str:
     """``text`` with every bare CR (one not followed by LF) replaced by LF. The result has the

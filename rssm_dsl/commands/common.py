@@ -36,6 +36,39 @@ class Format(str, Enum):
 
 
 FileArg = Annotated[Path, typer.Argument(help="The .rssm file of the system.", show_default=False)]
+# The output folder is taken as text: a Path option turns `-o ''` into `.`, the current folder.
+OUTPUT_METAVAR = "PATH"
+
+
+def output_folder(given: str | None, default: Path) -> Path | None:
+    """The folder of the outputs of a command: ``given`` (``--output``/``-o``) or
+    ``default``. None, with the problem printed (E880, a usage error: nothing is written),
+    when ``given`` is empty or names something that is not a folder."""
+    if given is None:
+        return default
+    problem = None
+    if not given:
+        problem = ("the output folder (--output/-o) is empty",
+                   "name the folder (-o out/spec; -o . for the current folder), or leave the "
+                   "option out for out/<file name>")
+    else:
+        path = Path(given)
+        try:
+            taken = path.exists() and not path.is_dir()
+        except (OSError, ValueError):     # not looked up here: the writer says why
+            taken = False
+        if taken:
+            from rssm_dsl.diagnostics.diagnostic import bound_text
+
+            problem = (f"the output folder '{bound_text(given)}' (--output/-o) is a file, "
+                       "not a folder", "name a folder, or remove the file")
+    if problem is None:
+        return Path(given)
+    typer.echo(f"rssmc: error[E880]: {problem[0]}", err=True)
+    typer.echo(f"  help: {problem[1]}", err=True)
+    return None
+
+
 FormatOpt = Annotated[Format, typer.Option("--format", "-f", help="How to print diagnostics.")]
 QuietOpt = Annotated[bool, typer.Option("--quiet", "-q", help="Print nothing on success.")]
 

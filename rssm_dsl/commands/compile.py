@@ -11,12 +11,14 @@ from rssm_dsl.commands.common import (
     EXIT_ERRORS,
     EXIT_OK,
     EXIT_USAGE,
+    OUTPUT_METAVAR,
     FileArg,
     Format,
     FormatOpt,
     QuietOpt,
     guarded,
     one_shot,
+    output_folder,
     report,
 )
 
@@ -38,7 +40,7 @@ def check(file: FileArg, format: FormatOpt = Format.text) -> None:
 
 def compile_cmd(
     file: FileArg,
-    output: Annotated[Path | None, typer.Option("--output", "-o",
+    output: Annotated[str | None, typer.Option("--output", "-o", metavar=OUTPUT_METAVAR,
                       help="Output folder (default: out/<file name>).")] = None,
     emit: Annotated[str, typer.Option(help="Comma-separated outputs: json, dump, dot, pnml, "
                                        "pnml-paged, cpn, mcc (Model Checking Contest input: "
@@ -57,6 +59,9 @@ def compile_cmd(
         from rssm_dsl.pipeline import compile_file
 
         one_shot()
+        target = output_folder(output, Path("out") / file.stem)
+        if target is None:
+            return EXIT_USAGE
         kinds = [k.strip() for k in emit.split(",") if k.strip()]
         unknown = [k for k in kinds if k not in EMITTERS and k != "mcc"]
         if unknown:
@@ -72,7 +77,6 @@ def compile_cmd(
             # mcc also writes the spec's properties: it needs the checked system
             files.update(emit_mcc(comp.hpn, comp.system) if k == "mcc"
                          else EMITTERS[k](comp.hpn))
-        target = output if output is not None else Path("out") / file.stem
         written = write_outputs(target, files)
         if not quiet and format is Format.text:
             h = comp.hpn

@@ -2,6 +2,10 @@
 
 from __future__ import annotations
 
+import contextlib
+import os
+import stat
+import tempfile
 from collections.abc import Callable
 from pathlib import Path
 from typing import TYPE_CHECKING, Annotated
@@ -14,17 +18,45 @@ if TYPE_CHECKING:
     from rssm_dsl.source import SourceFile
 
 
-def _files(paths: list[Path]) -> list[Path] | None:
+PATH_CODES = frozenset({"E001", "E002"})     # the path names nothing that can be read
+
+
+def _is_dir(path: Path) -> bool:
+    try:
+        return path.is_dir()
+    except (OSError, ValueError):   # a path too long, a NUL: read_source says why
+        return False
+
+
+def _files(paths: list[Path]) -> list[Path]:
+    """The files to format: each path given, or the .rssm files under a folder given. A path
+    that is no folder is kept whatever it is: reading it (read_source, the one place spec
+    files are read) reports what is wrong (E001 missing or unreadable, E002 not a regular
+    file, such as a FIFO)."""
     out: list[Path] = []
     for p in paths:
-        if p.is_dir():
+        if _is_dir(p):
             out.extend(sorted(p.rglob("*.rssm")))
-        elif p.is_file():
-            out.append(p)
         else:
-            typer.echo(f"rssmc fmt: no such file or folder: {p}", err=True)
-            return None
+            out.append(p)
     return out
+
+
+def _write_whole(path: Path, text: str) -> None:
+    """Replace the file's text all or nothing: written beside it, then renamed over it (the
+    file a symbolic link names, keeping the link; its permissions kept), so that a failure
+    (a full disk, Ctrl-C) leaves the file as it was."""
+    real = Path(os.path.realpath(path))
+    fd, temp = tempfile.mkstemp(prefix=".rssmc-fmt-", suffix=".rssm", dir=real.parent)
+    try:
+        with os.fdopen(fd, "w", encoding="utf-8") as f:
+            f.write(text)
+        os.chmod(temp, stat.S_IMODE(real.stat().st_mode))
+        os.replace(temp, real)
+    except BaseException:
+        with contextlib.suppress(OSError):
+            os.unlink(temp)
+        raise
 
 
 def _lines_of(source: SourceFile) -> Callable[[str, int], str]:
@@ -50,30 +82,31 @@ def fmt(
         from rssm_dsl.source import Span
         from rssm_dsl.syntax.format import format_text
 
-        found = _files(files)
-        if found is None:
-            return EXIT_USAGE
         code = EXIT_OK
-        for path in found:
+        for path in _files(files):  # each path in turn: a wrong one does not stop the rest
             bag = DiagnosticBag()
             source = read_source(path, bag, Span(str(path), 1, 1, 1, 1))
             if source is None:
-                typer.echo(render_text(bag.sorted(), lambda f, n: ""), err=True)
-                code = EXIT_ERRORS
+                diags = bag.sorted()
+                typer.echo(render_text(diags, lambda f, n: ""), err=True)
+                # a path that names no readable file (E001, E002) is a usage error, as it
+                # always was for `fmt`; a file that is no text or too large (E003, E004) an error
+                wrong_path = any(d.code in PATH_CODES for d in diags)
+                code = EXIT_USAGE if wrong_path else max(code, EXIT_ERRORS)
                 continue
             result = format_text(source.text, source.path)
             if result.text is None:
                 typer.echo(render_text(result.diagnostics, _lines_of(source)), err=True)
                 typer.echo(f"{display_path(path)}: not formatted (syntax errors)", err=True)
-                code = EXIT_ERRORS
+                code = max(code, EXIT_ERRORS)
                 continue
             if result.text == source.text:
                 continue
             if check:
                 typer.echo(f"{display_path(path)}: would be reformatted", err=True)
-                code = EXIT_ERRORS
+                code = max(code, EXIT_ERRORS)
             else:
-                path.write_text(result.text, encoding="utf-8")
+                _write_whole(path, result.text)
                 typer.echo(f"{display_path(path)}: formatted", err=True)
         return code
 

@@ -11,24 +11,29 @@ from rssm_dsl.commands.common import (
     EXIT_ERRORS,
     EXIT_OK,
     EXIT_USAGE,
+    OUTPUT_METAVAR,
     FileArg,
     Format,
     FormatOpt,
     QuietOpt,
     guarded,
+    output_folder,
     report,
 )
 from rssm_dsl.render import MAX_STEPS, MAX_STEPS_LIMIT
 
 if TYPE_CHECKING:
-    from rssm_dsl.render.playback import Playback
+    from rssm_dsl.diagnostics import DiagnosticBag
+    from rssm_dsl.hpn.flat import FlatNet
+    from rssm_dsl.render.playback import Playback, Window
     from rssm_dsl.render.series import SeriesPanel
 
 
 def render_cmd(
     file: FileArg,
-    output: Annotated[Path | None, typer.Option(
-        "--output", "-o", help="Output folder (default: out/<file name>/render).")] = None,
+    output: Annotated[str | None, typer.Option(
+        "--output", "-o", metavar=OUTPUT_METAVAR,
+        help="Output folder (default: out/<file name>/render).")] = None,
     html: Annotated[bool, typer.Option(
         "--html", help="Also write <system>.html, a self-contained explorer of the hierarchy "
         "with token-game playback.")] = False,
@@ -72,13 +77,16 @@ def render_cmd(
         from rssm_dsl.pipeline import compile_file
         from rssm_dsl.render.html import render_explorer, render_index
         from rssm_dsl.render.names import figure_files
-        from rssm_dsl.render.playback import Window, WindowError, load_playback
+        from rssm_dsl.render.playback import Window, WindowError
         from rssm_dsl.render.series import load_series
         from rssm_dsl.render.svg import GraphvizError, find_dot, render_svgs
 
         usage = _usage(trace, series, select, from_step, from_time)
         if usage is not None:
             typer.echo(f"rssmc: {usage}", err=True)
+            return EXIT_USAGE
+        target = output_folder(output, Path("out") / file.stem / "render")
+        if target is None:
             return EXIT_USAGE
         comp = compile_file(file)
         if not comp.ok or comp.hpn is None:
@@ -90,7 +98,7 @@ def render_cmd(
         net = flatten(hpn)
         window = Window(from_step or 0, from_time, max_steps)
         try:
-            playback = load_playback(trace, net, bag, window) if trace is not None else None
+            playback = _playback(trace, net, bag, window) if trace is not None else None
         except WindowError as e:
             typer.echo(f"rssmc: {e}", err=True)
             return EXIT_USAGE
@@ -127,7 +135,6 @@ def render_cmd(
             files[explorer] = render_explorer(hpn, net, comp.program, spec, figures, playback,
                                               panel)
         files["index.html"] = render_index(hpn, spec, figures, explorer, missing)
-        target = output if output is not None else Path("out") / file.stem / "render"
         write_outputs(target, files)
         full = replace(comp, diagnostics=comp.diagnostics + tuple(bag.sorted()))
         report(full, format, quiet)
@@ -139,6 +146,40 @@ def render_cmd(
         return EXIT_ERRORS if bag.has_errors else EXIT_OK
 
     guarded(run)
+
+
+def _playback(trace: Path, net: FlatNet, bag: DiagnosticBag, window: Window) -> Playback | None:
+    """The playback of the trace file, or None with its problem in ``bag`` (E852). The file
+    is checked first, within bounds (rssm_dsl/interp/trace.py): a regular file whose lines
+    are each at most MAX_FILE_BYTES, so the reader never blocks on a FIFO nor reads
+    /dev/zero without end; a JSON value nested too deeply for the decoder, or an integer of
+    more digits than Python converts, is E852 too (json_problem)."""
+    from rssm_dsl.interp.trace import (
+        TraceFileError,
+        collector_paused,
+        json_problem,
+        scan_trace_file,
+    )
+    from rssm_dsl.render.playback import load_playback
+    from rssm_dsl.source import Span
+
+    source = str(trace)
+    hint = ("give a trace of `rssmc simulate --trace` (JSON lines) or a report of "
+            "`rssmc verify --format json`")
+    try:
+        scan_trace_file(trace)
+    except TraceFileError as e:
+        bag.error("E852", e.message, Span(source, e.line, 1, e.line, 1), e.hint or hint)
+        return None
+    try:
+        with collector_paused():
+            return load_playback(trace, net, bag, window)
+    except (ValueError, RecursionError) as e:   # from the JSON decoder (a WindowError is not)
+        problem = json_problem(e)
+        if problem is None:
+            raise
+        bag.error("E852", f"the trace holds {problem}", Span(source, 1, 1, 1, 1), hint)
+        return None
 
 
 def _usage(trace: Path | None, series: Path | None, select: list[str] | None,

@@ -51,6 +51,7 @@ if TYPE_CHECKING:
 
 EXIT_BAD_INPUT = EXIT_USAGE         # a usage error or a specification that does not compile
 EXIT_INCONCLUSIVE = 3               # = rssm_dsl.verify.report.EXIT_INCONCLUSIVE
+BAD_OPTION_VALUE = "E890"           # = rssm_dsl.cli.BAD_OPTION_VALUE: a bad option's value
 
 
 def verify_cmd(
@@ -126,6 +127,7 @@ def verify_cmd(
     started = time.monotonic()
 
     def run() -> int:
+        from rssm_dsl.diagnostics.diagnostic import bound_text
         from rssm_dsl.verify.budget import Budget, default_max_memory, parse_size
         from rssm_dsl.verify.watchdog import Watchdog
 
@@ -141,18 +143,21 @@ def verify_cmd(
         if fairness not in ("strong", "weak"):
             typer.echo(f"rssmc: --fairness must be strong or weak, not {fairness!r}", err=True)
             return EXIT_BAD_INPUT
-        if math.isnan(timeout):
-            typer.echo("rssmc: --timeout nan: give a number of seconds (at least 0.1), or "
-                       "inf for no time limit", err=True)
+        if math.isnan(timeout):     # rssm_dsl.cli reads the options: only when called directly
+            typer.echo(f"rssmc: error[{BAD_OPTION_VALUE}]: --timeout nan: give a number of "
+                       "seconds (at least 0.1), or inf for no time limit", err=True)
             return EXIT_BAD_INPUT
         falsifier = _falsifier(simulation, seed, device_option or [])
         if isinstance(falsifier, str):
             typer.echo(falsifier, err=True)
             return EXIT_BAD_INPUT
         try:
+            if max_memory is not None and ("_" in max_memory or not max_memory.isascii()):
+                raise ValueError("not a number with an optional unit (K, M, G, T) or %")
             memory = parse_size(max_memory) if max_memory is not None else default_max_memory()
         except ValueError as e:
-            typer.echo(f"rssmc: --max-memory {max_memory!r}: {e}", err=True)
+            typer.echo(f"rssmc: error[{BAD_OPTION_VALUE}]: --max-memory "
+                       f"{bound_text(repr(max_memory))}: {e}", err=True)
             return EXIT_BAD_INPUT
         tty = sys.stderr.isatty()
         live = _Live(tty) if tty or progress else None

@@ -40,6 +40,7 @@ CODES: tuple[Code, ...] = (
     Code("E011", "name-unusable-as-file-name", _E, "a name too long or otherwise unusable as the file name it becomes"),
     Code("W012", "line-separator-in-comment", _W, "U+2028/U+2029/U+0085 in a comment do not end the line"),
     Code("E013", "literal-too-large", _E, "a number literal with more digits than the compiler reads"),
+    Code("E014", "import-not-a-spec", _E, "an import names a file that is not a .rssm specification"),
     # names
     Code("E101", "duplicate-name", _E, "a name is declared twice in the same scope"),
     Code("E102", "undefined-name", _E, "a name that is not declared"),
@@ -64,6 +65,8 @@ CODES: tuple[Code, ...] = (
     Code("E216", "binding-not-found", _E, "the module of a binding lacks the function or class it names"),
     Code("E217", "binding-arity", _E, "an extern's Python function cannot take the extern's arguments"),
     Code("W218", "binding-module-not-found", _W, "the Python module of a binding is not found here"),
+    Code("W228", "binding-module-unreadable", _W,
+         "the Python module of a binding is too large or too deeply nested to read"),
     # structure (paper III-A)
     Code("E301", "control-count", _E, "an agent needs exactly one control subsystem"),
     Code("E302", "link-not-allowed", _E, "a link between subsystems the methodology forbids"),
@@ -145,11 +148,19 @@ CODES: tuple[Code, ...] = (
          "the ROS message type named for a buffer cannot carry the buffer's values"),
     Code("E863", "ros-types-file", _E,
          "the ROS types file of a specification cannot be read or names no channel's buffer"),
+    Code("W868", "file-not-shipped", _W,
+         "a file of a binding's package is not shipped in the ROS 2 workspace (a link, a special file)"),
     # the LWR4+ experiment (rssmc run)
     Code("E870", "run-no-lwr4", _E, "no LWR4+ device, effector or set points for the experiment"),
     Code("E871", "run-option-unsupported", _E, "an option of `rssmc run` that the specification cannot honour"),
     Code("W872", "viewer-unavailable", _W, "the MuJoCo viewer cannot open (no display): the run goes on headless"),
     Code("W873", "video-unavailable", _W, "the video cannot be rendered or encoded here"),
+    # output folders (rssmc compile, rssmc render)
+    Code("E880", "bad-output-folder", _E,
+         "the output folder given with --output/-o is empty or is not a folder"),
+    # the command line
+    Code("E890", "bad-option-value", _E,
+         "a numeric option's value is not a number the command accepts"),
     # internal
     Code("E900", "internal-error", _E, "the compiler failed: please report it"),
 )

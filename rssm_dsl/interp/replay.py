@@ -31,14 +31,14 @@ path and Q false at every state from there on, the cycle replayed twice.
 from __future__ import annotations
 
 import json
-from collections.abc import Callable
+from collections.abc import Callable, Iterator
 from dataclasses import field, replace
 from pathlib import Path
-from typing import TYPE_CHECKING, Any
+from typing import IO, TYPE_CHECKING, Any
 
 from rssm_core.firing import Net, NotEnabled
 from rssm_core.records import dataclass
-from rssm_core.trace import TraceFormatError, parse_trace
+from rssm_core.trace import Fire, TraceFormatError, iter_events
 from rssm_core.values import short
 from rssm_dsl.diagnostics import Diagnostic
 from rssm_dsl.hpn.flat import FlatNet, Role
@@ -153,29 +153,107 @@ def _property(p: dict[str, Any]) -> Counterexample:
     return replace(cx, kind="property", subsystem=str(p["name"]))
 
 
+# the largest JSON document --replay reads whole: `rssmc verify --format json` writes a
+# counterexample per violated property, each of up to hundreds of thousands of steps (a
+# two-agent report with three is 9 MB), so not the cap of a spec file's size
+MAX_REPORT_BYTES = 256 * 2**20
+
+
 def load_counterexample(path: Path) -> Counterexample:
+    """The firing sequence of a replay file (see the module docstring), or
+    :class:`ReplayFileError`. Read within bounds (rssm_dsl/interp/trace.py): a regular file;
+    a trace of JSON lines streamed a line at a time, each line at most ``MAX_FILE_BYTES``; a
+    JSON document (a report, a counterexample, a list) at most ``MAX_REPORT_BYTES`` in all."""
+    from rssm_dsl.interp.trace import TraceFileError, check_trace_file, collector_paused
+
     try:
-        text = path.read_text(encoding="utf-8")
+        size = check_trace_file(path)
+        with path.open("rb") as f, collector_paused():
+            return _load(path, f, size)
+    except TraceFileError as e:            # its message names the line where it is one's
+        raise ReplayFileError(_coded(e.message)) from None
     except OSError as e:
-        raise ReplayFileError(f"cannot read {path}: {e.strerror or e}") from e
+        raise ReplayFileError(_coded(f"cannot read '{path}': {e.strerror or e}")) from None
+
+
+def _coded(message: str) -> str:
+    """A problem of the replay file as `simulate` prints it (after ``rssmc: --replay:``):
+    with its code, E852 (a trace or counterexample file that cannot be read)."""
+    return f"error[E852]: {message}"
+
+
+def _load(path: Path, f: IO[bytes], size: int) -> Counterexample:
+    from rssm_dsl.interp.trace import (
+        bounded_lines,
+        json_problem,
+        starts_with_event,
+        too_large,
+    )
+
+    if starts_with_event(f):                          # JSON lines: streamed, any length
+        f.seek(0)
+        return _from_trace(path, bounded_lines(f))
+    if size > MAX_REPORT_BYTES:
+        raise too_large(path, size, MAX_REPORT_BYTES)
+    f.seek(0)
+    data_bytes = f.read(MAX_REPORT_BYTES + 1)
+    try:
+        text = data_bytes.decode("utf-8")
+    except UnicodeDecodeError as e:
+        line = data_bytes.count(b"\n", 0, e.start) + 1
+        raise ReplayFileError(_coded(f"line {line}: not UTF-8 text (byte {e.start})")) from None
     try:
         data = json.loads(text)
     except json.JSONDecodeError:
         data = None
+    except (ValueError, RecursionError) as e:
+        problem = json_problem(e)
+        if problem is None:
+            raise
+        raise ReplayFileError(_coded(problem)) from None
     if data is None or (isinstance(data, dict) and "event" in data):   # JSON lines
-        try:
-            trace = parse_trace(text.split("\n"), str(path))
-        except TraceFormatError as e:
-            raise ReplayFileError(str(e)) from None
-        steps = tuple(f.transition for f in trace.fires())
-        if not steps:
-            raise ReplayFileError(f"{path} holds no firing sequence")
-        return Counterexample("trace", steps)
-    if isinstance(data, list):
-        return Counterexample("trace", _names(data, "the list"))
-    if isinstance(data, dict):
-        return _from_object(data)
-    raise ReplayFileError(f"{path} holds no firing sequence")
+        return _from_trace(path, iter(text.split("\n")))
+    try:
+        if isinstance(data, list):
+            return Counterexample("trace", _names(data, "the list"))
+        if isinstance(data, dict):
+            return _from_object(data)
+    except RecursionError as e:            # reports nested in reports: _from_object recurses
+        raise ReplayFileError(_coded(str(json_problem(e)))) from None
+    except ReplayFileError as e:
+        raise ReplayFileError(_coded(str(e))) from None
+    raise ReplayFileError(_coded(f"{path} holds no firing sequence"))
+
+
+def _from_trace(path: Path, lines: Iterator[str | bytes]) -> Counterexample:
+    """The fire events of a trace of JSON lines, read by the one trace reader: a malformed
+    line is that reader's error (a :class:`TraceFormatError`, word for word)."""
+    from rssm_dsl.interp.trace import json_problem
+
+    names: dict[str, str] = {}             # one string per transition, however many firings
+    steps: list[str] = []
+    count = 0
+
+    def counted() -> Iterator[str | bytes]:
+        nonlocal count
+        for raw in lines:
+            count += 1
+            yield raw
+
+    try:
+        for event in iter_events(counted(), str(path)):
+            if isinstance(event, Fire):
+                steps.append(names.setdefault(event.transition, event.transition))
+    except TraceFormatError as e:
+        raise ReplayFileError(str(e)) from None
+    except (ValueError, RecursionError) as e:
+        problem = json_problem(e)
+        if problem is None:
+            raise
+        raise ReplayFileError(_coded(f"line {count}: {problem}")) from None
+    if not steps:
+        raise ReplayFileError(_coded(f"{path} holds no firing sequence"))
+    return Counterexample("trace", tuple(steps))
 
 
 def resolve_steps(net: FlatNet, names: list[str],
@@ -245,6 +323,11 @@ def _judge(cx: Counterexample, forced: list[int], result: RunResult,
                                  result.diagnostics)
         return ReplayVerdict(False, f"the replay stopped at step {result.steps}: "
                              f"{result.message}", result.diagnostics)
+    if (result.reason == "finished" and cx.kind == "trace" and forced
+            and result.steps == len(forced)):
+        # the last firing of the trace finished the system: the run it recorded ended there
+        return ReplayVerdict(True, f"replayed {result.steps} firings; the system finished, "
+                             "as in the trace", result.diagnostics)
     if result.reason != "replayed":
         return ReplayVerdict(False, f"the replay stopped early ({result.reason}): "
                              f"{result.message}", result.diagnostics)

@@ -34,6 +34,7 @@ from jinja2 import Environment, PackageLoader, StrictUndefined
 
 from rssm_core.records import dataclass
 from rssm_dsl.diagnostics import Diagnostic
+from rssm_dsl.diagnostics.diagnostic import bound_text
 from rssm_dsl.emit.write import write_outputs
 from rssm_dsl.filenames import file_name
 from rssm_dsl.interp.initial import InitialValues
@@ -41,6 +42,7 @@ from rssm_dsl.pipeline import Compilation
 from rssm_dsl.pycode import comment, tuple_source
 from rssm_dsl.ros2.msgtypes import MessageTypes
 from rssm_dsl.ros2.names import NameChecker
+from rssm_dsl.ros2.shipping import read_shipped
 from rssm_dsl.ros2.stdtypes import (
     RosType,
     explicit_diagnostic,
@@ -123,7 +125,12 @@ def generate(comp: Compilation, options: Options | None = None) -> Workspace | l
         Diagnostic("W861", f"module '{module}' (binding \"{binding}\") is neither next to the "
                    "specification nor in the standard library: the workspace does not ship it",
                    system.span, "install it in the Python environment ROS 2 runs in")
-        for module, binding in view.shipped_missing)
+        for module, binding in view.shipped_missing) + tuple(
+        Diagnostic("W868", f"{bound_text(path)} (binding \"{binding}\") {why}", system.span,
+                   "ship only the package's Python sources; give a device its data file next "
+                   "to the specification, or install what the node needs in the Python "
+                   "environment ROS 2 runs in")
+        for path, why, binding in shipment.skipped)
     copies = {f"{view.runtime.name}/{rel}": src for rel, src in shipment.copies.items()}
     for agent in view.agents:
         for name, src in agent.data_files:
@@ -205,5 +212,5 @@ def write_workspace(ws: Workspace, target: Path) -> list[Path]:
     files are staged beside it and moved into place. Files of packages this workspace
     generates that are no longer generated are removed; anything else is left alone."""
     files: dict[str, str | bytes] = dict(ws.files)
-    files.update({rel: src.read_bytes() for rel, src in ws.copies.items()})
+    files.update({rel: read_shipped(src) for rel, src in ws.copies.items()})
     return write_outputs(target, files, replace_dirs=ws.packages)

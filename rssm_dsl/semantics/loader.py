@@ -4,6 +4,11 @@ Besides reading, the loader reports what is wrong with a file as text rather tha
 the file itself (E001-E004), a line separator in a comment (W012), and the names that cannot
 become the file names they give the outputs (E011, rssm_dsl/filenames.py). A lookup that
 fails in any way (a path too long for the system, a NUL in it) is a module not found (E009).
+:func:`read_source` is the one place a spec file is read (every command, the editor): a path
+that cannot be read (a symbolic link loop, no permission), that is no regular file (a
+folder, a FIFO, a device) or that is too large is a coded diagnostic, never an exception. A
+quoted import of a file that is not a spec (no ``.rssm`` suffix: ``import "/etc/passwd"``)
+is refused before it is read (E014), so nothing of it is shown.
 """
 
 from __future__ import annotations
@@ -19,11 +24,11 @@ from rssm_core.records import dataclass
 from rssm_dsl.diagnostics import DiagnosticBag
 from rssm_dsl.filenames import MAX_NAME_LENGTH, is_file, name_problem
 from rssm_dsl.resources import stdlib_dir
-from rssm_dsl.source import SourceFile, Span, describe_char
+from rssm_dsl.source import MAX_FILE_BYTES, SourceFile, Span, describe_char
 from rssm_dsl.syntax import ast
 from rssm_dsl.syntax.parser import parse
 
-MAX_FILE_BYTES = 8 * 1024 * 1024
+SPEC_SUFFIX = ".rssm"
 STDLIB_PREFIX = "<stdlib>/"
 
 
@@ -39,18 +44,28 @@ class Program:
         return src.line_text(line) if src else ""
 
 
+def resolved(path: Path) -> Path:
+    """``path.resolve()``, or the absolute path when it cannot be resolved: a symbolic link
+    loop (``RuntimeError`` before Python 3.13, ``OSError`` after), a NUL in the path. Reading
+    such a path is then reported by :func:`read_source` (E001)."""
+    try:
+        return path.resolve()
+    except (OSError, RuntimeError, ValueError):
+        return Path(os.path.abspath(path))
+
+
 def display_path(path: Path) -> str:
     """How a file is named in spans: stdlib files as <stdlib>/..., others relative to the CWD."""
-    resolved = path.resolve()
+    full = resolved(path)
     try:
-        return STDLIB_PREFIX + resolved.relative_to(stdlib_dir().resolve()).as_posix()
+        return STDLIB_PREFIX + full.relative_to(stdlib_dir().resolve()).as_posix()
     except ValueError:
         pass
     try:
-        rel = os.path.relpath(resolved)
+        rel = os.path.relpath(full)
     except ValueError:
-        return resolved.as_posix()
-    return Path(rel).as_posix() if not rel.startswith("../../..") else resolved.as_posix()
+        return full.as_posix()
+    return Path(rel).as_posix() if not rel.startswith("../../..") else full.as_posix()
 
 
 def read_source(
@@ -58,8 +73,10 @@ def read_source(
 ) -> SourceFile | None:
     """Read one file as UTF-8 text; report E001-E004 at `at` instead of raising."""
     shown = display_path(path)
-    if overrides and path.resolve() in overrides:
-        return SourceFile(shown, overrides[path.resolve()])
+    if overrides:
+        key = resolved(path)
+        if key in overrides:
+            return SourceFile(shown, overrides[key])
     try:
         info = path.stat()
     except (OSError, ValueError) as e:   # ValueError: a NUL in the path
@@ -67,7 +84,8 @@ def read_source(
                   "check the path; imports are looked up next to the importing file, then in the stdlib")
         return None
     if not stat.S_ISREG(info.st_mode):
-        bag.error("E002", f"'{path}' is not a regular file", at, "give the path of a .rssm file")
+        bag.error("E002", f"'{path}' is not a regular file{_kind_of(info.st_mode)}", at,
+                  "give the path of a .rssm file")
         return None
     try:
         size = info.st_size
@@ -91,11 +109,23 @@ def read_source(
     return SourceFile(shown, text.removeprefix("\ufeff"))
 
 
+def _kind_of(mode: int) -> str:
+    """What a file that is not a regular file is, as an aside of the E002 message."""
+    for test, what in ((stat.S_ISDIR, "a folder"), (stat.S_ISFIFO, "a FIFO"),
+                       (stat.S_ISCHR, "a character device"), (stat.S_ISBLK, "a block device"),
+                       (stat.S_ISSOCK, "a socket")):
+        if test(mode):
+            return f" ({what})"
+    return ""
+
+
 def _lookup_failure(e: OSError | ValueError) -> str:
     if isinstance(e, ValueError) or e.errno in (errno.ENOENT, errno.ENOTDIR):
         return "no such file"
     if e.errno == errno.ENAMETOOLONG:
         return "the path is too long for the file system"
+    if e.errno == errno.ELOOP:
+        return "too many levels of symbolic links (a symbolic link loop?)"
     return e.strerror or str(e)
 
 
@@ -125,7 +155,7 @@ class Loader:
         return self.program
 
     def _load(self, path: Path, at: Span) -> ast.Module | None:
-        key = path.resolve()
+        key = resolved(path)
         if key in self._done:
             return self._done[key]
         source = read_source(path, self.bag, at, self.overrides)
@@ -145,15 +175,10 @@ class Loader:
         self._stack.append(key)
         imported: list[str] = []
         for imp in module.imports:
-            target = next((c for c in _candidates(imp, path) if is_file(c)), None)
+            target = self._find(imp, path)
             if target is None:
-                self.bag.error(
-                    "E009", f"cannot find module '{imp.path}'", imp.span,
-                    "modules are looked up next to this file, then in the stdlib "
-                    "(e.g. `import std.types`)",
-                )
                 continue
-            tkey = target.resolve()
+            tkey = resolved(target)
             if tkey in self._stack:
                 cycle = [*self._stack[self._stack.index(tkey):], tkey]
                 names = " -> ".join(display_path(p) for p in cycle)
@@ -166,6 +191,39 @@ class Loader:
         self.program.imports[source.path] = imported
         self.program.modules.append(module)
         return module
+
+    def _find(self, imp: ast.Import, importer: Path) -> Path | None:
+        """The file an import names, or None with the problem reported: no file (E009), or
+        a quoted path that names a file that is not a spec (E014: it is never read, so
+        nothing of it is shown, in the terminal or the editor).
+        A quoted path that is there but is no regular file or cannot be looked up (a
+        symbolic link loop, no permission) is returned: :func:`read_source` says why."""
+        candidates = _candidates(imp, importer)
+        target = next((c for c in candidates if is_file(c)), None)
+        if target is None and imp.quoted and _exists(candidates[0]):
+            target = candidates[0]
+        if target is None:
+            self.bag.error(
+                "E009", f"cannot find module '{imp.path}'", imp.span,
+                "modules are looked up next to this file, then in the stdlib "
+                "(e.g. `import std.types`)",
+            )
+            return None
+        if target.suffix != SPEC_SUFFIX:           # only a quoted path can name one
+            self.bag.error("E014", f"'{imp.path}' is not an RSSM module: an import names a "
+                           f"{SPEC_SUFFIX} file", imp.span,
+                           f"import a specification file (name{SPEC_SUFFIX}) or a module "
+                           "(`import std.types`); the file was not read")
+            return None
+        return target
+
+
+def _exists(path: Path) -> bool:
+    """Whether there is a directory entry at ``path`` (a broken or looping link counts)."""
+    try:
+        return os.path.lexists(path)
+    except (OSError, ValueError):
+        return False
 
 
 # ---------------------------------------------------------------- W012: U+2028 in comments

@@ -4,7 +4,7 @@ interpreter will look for it (E216), and a function takes the extern's arguments
 same lookups and the same arity rule as `rssmc simulate` (E801, E804 there), so that `rssmc
 check` reports what a run would, before it. A module that is not found at all is only a
 warning (W218): it may be installed where the system runs (a vendor's driver on the robot),
-not where it is checked.
+not where it is checked. Nor is a module too large or too deeply nested to read (W228).
 A binding not of the form module:attribute is E208, reported by the declarations."""
 
 from __future__ import annotations
@@ -14,6 +14,7 @@ from pathlib import Path
 from rssm_dsl.bindings import (
     BindingError,
     ModuleMissing,
+    ModuleUnreadable,
     arity_problem,
     binding_dirs,
     split_binding,
@@ -58,7 +59,9 @@ def check_bindings(ctx: CheckContext) -> None:
 
 
 def _report(bag: DiagnosticBag, e: BindingError, what: str, at: Span) -> None:
-    if isinstance(e, ModuleMissing):
+    if isinstance(e, ModuleUnreadable):
+        bag.warn("W228", f"{what}: {e.message}", at, e.hint)
+    elif isinstance(e, ModuleMissing):
         bag.warn("W218", f"{what}: {e.message}", at,
                  f"{e.hint}; or install it here (`rssmc simulate` needs it; a system that "
                  "runs elsewhere needs it there)")
