@@ -122,3 +122,15 @@ def test_failure_takes_the_error_condition_path(tmp_path: Path) -> None:
     assert c.handled_errors == 1 and c.vars["recovered"] == 1
     assert c.behaviours["recover"].iterations == 1
     assert c.vars["x"] > 100.0 and c.ended
+
+
+def test_a_bool_returned_for_an_int_is_e803(tmp_path: Path) -> None:
+    """Python's True is an int to Python, not to RSSM: an extern declared `-> int` that
+    returns a bool is a wrong return type (E803), not the number 1."""
+    (tmp_path / "bool_ops.py").write_text("def flag(x):\n    return x > -1.0\n")
+    comp = compile_text(tmp_path, _spec(
+        'extern flag(x: float) -> int = "bool_ops:flag"', "          x := x + flag(x)"))
+    _, result = run(comp, max_steps=100)
+    assert result.reason == "error", result.message
+    (d,) = result.diagnostics
+    assert d.code == "E803" and "bool" in d.message, d.message

@@ -142,3 +142,16 @@ def test_index_out_of_range_is_reported(tmp_path: Path) -> None:
     _, result = run(comp, max_steps=200)
     assert result.reason == "error"
     assert "index 3 is out of range (indices run from 0 to 2)" in result.diagnostics[0].message
+
+
+@pytest.mark.parametrize(("body", "memory"), [
+    # an item below 0 is out of range on assignment too (not counted from the end)
+    ("a[k - 1] := 9", "memory a: int[3] = [1, 2, 3]\n      memory k: int = 0"),
+    # a value of a wider range stored into a narrower one is checked where it is stored
+    ("r := s", "memory r: 0..3 = 0\n      memory s: 0..10 = 7"),
+])
+def test_stores_that_must_fail(tmp_path: Path, body: str, memory: str) -> None:
+    comp = compile_text(tmp_path, single_control(body, memory))
+    _, result = run(comp, max_steps=60)
+    assert result.reason == "error", result.message
+    assert [d.code for d in result.diagnostics] == ["E802"], result.message

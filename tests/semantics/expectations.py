@@ -307,6 +307,10 @@ VALUE_ROWS: tuple[ValueRow, ...] = (
     ValueRow("(1 < 2) == (3 < 4)", "bool", True, why="comparisons' results compare as bools"),
     ValueRow("(2 < 1) == (3 < 4)", "bool", False, why="comparisons' results compare as bools"),
     ValueRow("(1 < 2) != (4 < 3)", "bool", True, why="comparisons' results compare as bools"),
+    ValueRow("(1 == 1) != (2 == 3)", "bool", True, why="equalities' results compare as bools "
+             "(no chained comparison)"),
+    ValueRow("2.0 + (if once > 0 then 1.0 else 0.0)", "float", 2.0,
+             why="a parenthesised `if` is one operand"),
     ValueRow("[10, 20, 30][once + 2]", "int", 30, why="indices run from 0"),
     ValueRow("[10, 20, 30][once - 1]", "int", None, "E802",
              "an index below 0 is out of range (not counted from the end)"),
