@@ -367,7 +367,9 @@ def _load_replay(comp: Compilation, rt: Runtime, replay: Path, mode: str, fmt: F
     try:
         cx = load_counterexample(replay)
     except ReplayFileError as e:
-        typer.echo(f"rssmc: --replay: {e}", err=True)
+        text = str(e)       # every problem of the file is E852 (the reader's own words)
+        typer.echo(f"rssmc: --replay: {text if text.startswith('error[') else f'error[E852]: {text}'}",
+                   err=True)
         return EXIT_USAGE
     forced, bad = resolve_steps(rt.net, cx.sequence(), str(replay))
     if bad:
