@@ -125,9 +125,10 @@ def guarded(fn: Callable[[], int]) -> None:
         else:
             what = str(e)
         typer.echo(f"rssmc: error: {bound_text(what)}", err=True)
-        typer.echo("  help: check the paths given to the command (--output/-o) and their "
-                   "permissions; if they are right, this is a bug in rssmc: please report it "
-                   "(set RSSMC_DEBUG=1 for the traceback)", err=True)
+        typer.echo("  help: check the paths given to the command (the files it writes: "
+                   "--output/-o, --trace, ...) and their permissions; if they are right, this "
+                   "is a bug in rssmc: please report it (set RSSMC_DEBUG=1 for the traceback)",
+                   err=True)
         if os.environ.get("RSSMC_DEBUG"):
             traceback.print_exc()
         raise typer.Exit(EXIT_USAGE) from None

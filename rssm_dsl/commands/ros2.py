@@ -12,11 +12,13 @@ from rssm_dsl.commands.common import (
     EXIT_ERRORS,
     EXIT_OK,
     EXIT_USAGE,
+    OUTPUT_METAVAR,
     FileArg,
     Format,
     FormatOpt,
     QuietOpt,
     guarded,
+    output_folder,
     report,
 )
 
@@ -25,9 +27,9 @@ MAINTAINER = re.compile(r"\s*([^<>]+?)\s*<([^<>\s]+@[^<>\s]+)>\s*\Z")
 
 def ros2(
     file: FileArg,
-    output: Annotated[Path | None, typer.Option(
-        "--output", "-o", help="The colcon workspace's src folder to write "
-        "(default: out/<file name>/ros2_ws/src).")] = None,
+    output: Annotated[str | None, typer.Option(
+        "--output", "-o", metavar=OUTPUT_METAVAR, help="The colcon workspace's src folder to "
+        "write (default: out/<file name>/ros2_ws/src).")] = None,
     maintainer: Annotated[str, typer.Option(
         help="Maintainer written into package.xml and setup.py, as 'Name <email>'.")]
     = "rssmc <rssmc@example.com>",
@@ -46,6 +48,9 @@ def ros2(
         from rssm_dsl.ros2.generator import generate, write_workspace
         from rssm_dsl.ros2.viewmodel import Options
 
+        target = output_folder(output, Path("out") / file.stem / "ros2_ws" / "src")
+        if target is None:
+            return EXIT_USAGE
         m = MAINTAINER.match(maintainer)
         if m is None or not license.strip() or any(c in license for c in "<>&\n"):
             typer.echo("rssmc: --maintainer must be 'Name <email>' and --license a plain "
@@ -63,7 +68,6 @@ def ros2(
             typer.echo(render_text(list(diags), comp.program.line), err=True)
         if isinstance(ws, list):
             return EXIT_ERRORS
-        target = output if output is not None else Path("out") / file.stem / "ros2_ws" / "src"
         written = write_workspace(ws, target)
         if not quiet and format is Format.text:
             typer.echo(f"wrote {len(written)} files of {len(ws.packages)} packages "
