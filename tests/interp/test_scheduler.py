@@ -254,25 +254,32 @@ def _solo(name: str, hz: str = "") -> str:
   }}"""
 
 
+@pytest.mark.parametrize("agents", ["ab", "abc"])
 @pytest.mark.parametrize("eager", [True, False])
 def test_the_seeded_choice_reaches_each_of_three_enabled_transitions(tmp_path: Path,
-                                                                     eager: bool) -> None:
-    """Three agents whose control subsystems can all start at once: over seeds, each of the
-    three is the first to enter its behaviour (the choice is among all that are enabled, not
-    the first two, the lowest or the last)."""
-    comp = compile_text(tmp_path, "system three {" + "".join(_solo(x, " @ 10 Hz") for x in "abc")
+                                                                     eager: bool,
+                                                                     agents: str) -> None:
+    """Two or three agents whose control subsystems can all start at once (on their first
+    tick): over seeds, each is the first to enter its behaviour (the choice is among all
+    that are enabled, not the first, the lowest or the last)."""
+    comp = compile_text(tmp_path, "system three {" + "".join(_solo(x, " @ 10 Hz") for x in agents)
                         + "\n}\n")
     first: set[str] = set()
+    begins: set[str] = set()      # the first iteration to begin: a choice among ticks due
     for seed in range(24):
         rt = runtime(comp)
         rt.tracer = TraceWriter(tmp_path / f"{seed}.jsonl")
         Simulator(rt, SimOptions(seed=seed, max_steps=60, eager=eager)).run()
         rt.tracer.close()
-        enters = [e["subsystem"] for e in read_trace(tmp_path / f"{seed}.jsonl")
-                  if e["event"] == "enter"]
-        assert sorted(enters) == ["a.c", "b.c", "c.c"], enters
+        events = read_trace(tmp_path / f"{seed}.jsonl")
+        enters = [e["subsystem"] for e in events if e["event"] == "enter"]
+        assert sorted(enters) == [f"{x}.c" for x in agents], enters
         first.add(str(enters[0]))
-    assert first == {"a.c", "b.c", "c.c"}
+        begins.add(next(str(e["subsystem"]) for e in events if e["event"] == "fire"
+                        and str(e["label"]).endswith("(go) begins")))
+    assert first == {f"{x}.c" for x in agents}
+    if not eager:           # eager: an iteration begins as soon as its subsystem entered
+        assert begins == {f"{x}.c" for x in agents}
 
 
 def _starts(tmp_path: Path, mode: str, eager: bool) -> tuple[dict[str, list[float]], object]:
