@@ -324,3 +324,22 @@ def test_concurrent_mode_never_starts_an_iteration_before_its_tick(tmp_path: Pat
         assert all(int(b + 1e-6) > int(a + 1e-6)
                    for a, b in itertools.pairwise(ticks)), ticks
         assert all(t >= k - 1e-6 for k, t in enumerate(ticks)), ticks
+
+
+def test_an_overrun_is_a_start_a_whole_period_late() -> None:
+    """The clock model (docs/simulate.md): an iteration that starts late by less than a
+    period is no overrun and keeps the next tick on the grid; one late by a whole period or
+    more is an overrun, and the ticks it missed are skipped."""
+    from rssm_dsl.interp.clock import Ticker
+
+    t = Ticker("a1.c", 10.0)                 # period 100 ms
+    t.start(0)
+    assert (t.next, t.overruns) == (100_000_000, 0)
+    t.start(150_000_000)                     # half a period late
+    assert (t.next, t.overruns) == (200_000_000, 0)
+    t.start(299_999_999)                     # a whole period late, less 1 ns
+    assert (t.next, t.overruns) == (300_000_000, 0)
+    t.start(400_000_000)                     # a whole period late: the tick at 300 ms missed
+    assert (t.next, t.overruns) == (500_000_000, 1)
+    t.start(750_000_000)                     # 2.5 periods late: one overrun, ticks skipped
+    assert (t.next, t.overruns) == (800_000_000, 2)
