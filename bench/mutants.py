@@ -289,10 +289,15 @@ def apply(m: Mutant, root: Path) -> None:
     path.write_text(text.replace(m.old, m.new), encoding="utf-8")
 
 
+def selection() -> list[str]:
+    """The pytest options that choose the tests (--ros: the ros2-marked ones too)."""
+    return [x for x in SELECT if x not in ("-m", "not ros2")] if ROS else SELECT
+
+
 def run_tests(root: Path, tests: list[str], timeout: float) -> tuple[str | None, float]:
     """The first failing test (None when every test passed) and the seconds it took."""
     env = dict(os.environ, PYTHONPATH=str(root), PYTHONDONTWRITEBYTECODE="1")
-    select = [x for x in SELECT if x not in ("-m", "not ros2")] if ROS else SELECT
+    select = selection()
     cmd = [sys.executable, "-m", "pytest", "-x", "-q", "-p", "no:cacheprovider",
            "--no-header", "-rf", *select, *tests]
     start = time.perf_counter()
@@ -353,7 +358,7 @@ def main() -> int:
             print(f"{m.name:42} {m.path}: {m.what}")
         return 0
     tests = [t for t in args.tests if (ROOT / t.split("::")[0]).exists()]
-    print(f"{len(chosen)} mutants; tests: {' '.join(tests)} ({' '.join(SELECT)})")
+    print(f"{len(chosen)} mutants; tests: {' '.join(tests)} ({' '.join(selection())})")
     start = time.perf_counter()
     survivors = 0
     with tempfile.TemporaryDirectory(prefix="rssm-mutants-") as tmp:
