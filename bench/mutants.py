@@ -341,7 +341,8 @@ def killed(m: Mutant, base: Path, tmp: Path, tests: list[str],
 
 def main() -> int:
     ap = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
-    ap.add_argument("--only", default="", help="run the mutants whose name contains this")
+    ap.add_argument("--only", default="", help="run the mutants whose name contains this "
+                    "(or one of these, comma-separated)")
     ap.add_argument("--tests", nargs="*", default=list(DEFAULT_TESTS))
     ap.add_argument("--timeout", type=float, default=900.0, help="seconds per mutant")
     ap.add_argument("--jobs", type=int, default=1, help="mutants run at once")
@@ -352,7 +353,7 @@ def main() -> int:
     args = ap.parse_args()
     global ROS
     ROS = args.ros
-    chosen = [m for m in ALL if args.only in m.name]
+    chosen = [m for m in ALL if any(part in m.name for part in args.only.split(","))]
     if args.list:
         for m in chosen:
             print(f"{m.name:42} {m.path}: {m.what}")
