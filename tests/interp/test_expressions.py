@@ -149,7 +149,7 @@ def test_index_out_of_range_is_reported(tmp_path: Path) -> None:
     ("a[k - 1] := 9", "memory a: int[3] = [1, 2, 3]\n      memory k: int = 0"),
     # a value of a wider range stored into a narrower one is checked where it is stored
     ("r := s", "memory r: 0..3 = 0\n      memory s: 0..10 = 7"),
-])
+], ids=["item-below-0", "wider-range-into-narrower"])
 def test_stores_that_must_fail(tmp_path: Path, body: str, memory: str) -> None:
     comp = compile_text(tmp_path, single_control(body, memory))
     _, result = run(comp, max_steps=60)
