@@ -24,6 +24,7 @@ from std_msgs.msg import Float64  # type: ignore[import-not-found]
 
 from rssm_core.modes import Mode, pairing
 from rssm_dsl.ros2.runtime.channels import ChannelSpec, Inbox, Outbox
+from rssm_dsl.ros2.runtime.loop import Loop
 
 
 @dataclass
@@ -251,6 +252,34 @@ def a_blocking_producer_sends_the_next_sample_only_after_the_ack() -> None:
     assert not done(op)
     bus.all(DATA, INFO)
     assert inbox.take() == 2.0 and inbox.overwritten == 0, "nothing lost under blocking"
+
+
+@scenario
+def a_nonblocking_receive_takes_in_what_has_arrived_before_it_decides() -> None:
+    """The node's receive operation (runtime/loop.py, Loop.take): a sample that has arrived
+    but whose callbacks have not run yet is taken in first (the executor is drained), so a
+    non-blocking receive finds it."""
+    bus, out, inbox = channel(N, N)
+    list(out.send(4.0))
+
+    class Node:                 # the part of a Loop that Loop.take uses
+        def __init__(self) -> None:
+            self.inboxes = {"x": inbox}
+
+        def drain(self) -> None:
+            bus.all(DATA, INFO)
+
+    op = Loop.take(Node(), "x")  # type: ignore[arg-type]
+    try:
+        next(op)
+        raise AssertionError("a non-blocking receive does not wait")
+    except StopIteration as stop:
+        assert stop.value == (True, 4.0), stop.value
+    op = Loop.take(Node(), "x")  # type: ignore[arg-type]
+    try:
+        next(op)
+    except StopIteration as stop:
+        assert stop.value == (False, None), "nothing newer: nothing taken"
 
 
 def main() -> int:

@@ -14,7 +14,7 @@ from tests.conftest import ROOT
 
 pytestmark = pytest.mark.ros2
 
-SCENARIOS = 8
+SCENARIOS = 9
 
 
 def test_every_scenario_of_the_channel_protocol_holds(ros_venv: toolchain.RosVenv) -> None:
