@@ -655,7 +655,7 @@ def call(fn: Callable[..., Any] | None, conv: Convert, name: str, where: Any,
         raise OperationError("E801", f"extern {name} has no binding", where)
     try:
         r = fn(*args)
-    except Exception as e:
+    except (Exception, SystemExit) as e:    # sys.exit() in user code fails the operation
         raise OperationError("E802", f"{name}() raised {type(e).__name__}: {e}", where) from e
     try:
         return conv(r)

@@ -156,7 +156,7 @@ def import_module(name: str, dirs: Sequence[Path]) -> ModuleType:
                                hint_for(missing) or
                                f"install the Python package that provides '{missing}'") from e
         raise _not_found(name, dirs) from e
-    except Exception as e:
+    except (Exception, SystemExit) as e:     # sys.exit() at import time too
         raise BindingError(f"importing '{name}' failed: {type(e).__name__}: {e}",
                            "fix the module so that it imports cleanly") from e
 

@@ -372,9 +372,9 @@ def _load_replay(comp: Compilation, rt: Runtime, replay: Path, mode: str, fmt: F
                    err=True)
         return EXIT_USAGE
     forced, bad = resolve_steps(rt.net, cx.sequence(), str(replay))
-    if bad:
+    if bad:                 # E806: not a replay of this net, so nothing is reproduced
         _show(comp, bad, fmt)
-        return EXIT_ERRORS
+        return EXIT_USAGE
     if mode != "deterministic":
         typer.echo("rssmc: --replay runs in deterministic mode", err=True)
         return EXIT_USAGE
@@ -431,6 +431,8 @@ def _exit_code(result: RunResult, cx: Counterexample | None,
                verdict: ReplayVerdict | None) -> int:
     if result.reason == "interrupted":
         return EXIT_INTERRUPTED
+    if cx is not None and any(d.code == "E806" for d in result.diagnostics):
+        return EXIT_USAGE           # the replay diverged: nothing is reproduced
     if verdict is None and result.reason in ("deadlock", "stalled"):
         return EXIT_STUCK
     if verdict is not None:

@@ -125,7 +125,7 @@ class Runtime:
         for d in self.devices.values():
             try:
                 d.impl.close()
-            except Exception as e:
+            except (Exception, SystemExit) as e:
                 problems.append(f"{d.id}: close() raised {type(e).__name__}: {e}")
         return problems
 
@@ -228,7 +228,7 @@ class _Builder:
             self.diags.append(Diagnostic("E801", f"device {d.id} ({binding}): {e}", d.span,
                                          "see --device-option ID:KEY=VALUE"))
             return None
-        except Exception as e:
+        except (Exception, SystemExit) as e:
             self.diags.append(Diagnostic(
                 "E802", f"device {d.id} ({binding}) failed to start: {type(e).__name__}: {e}",
                 d.span))
@@ -582,7 +582,7 @@ def _receive(rt: Runtime, owner: SubsystemState | DeviceState, buffer: str,
                      "value": to_json(value), "place": name, "span": span})
         try:
             impl.receive(buffer, value)
-        except Exception as e:
+        except (Exception, SystemExit) as e:
             raise EvalError("E802", f"device {sid}: receive({buffer!r}) raised "
                             f"{type(e).__name__}: {e}", dspan) from e
     return device_receive
@@ -610,7 +610,7 @@ def _device_step(rt: Runtime, d: DeviceState, span: Span) -> Op:
         try:
             impl.step(dt / 1e9)
             measured = impl.measure()
-        except Exception as e:
+        except (Exception, SystemExit) as e:     # sys.exit() in a device fails its step
             raise EvalError("E802", f"device {d.id} failed to step: {type(e).__name__}: {e}",
                             span) from e
         if typed and checked.issuperset(measured):

@@ -134,3 +134,15 @@ def test_a_bool_returned_for_an_int_is_e803(tmp_path: Path) -> None:
     assert result.reason == "error", result.message
     (d,) = result.diagnostics
     assert d.code == "E803" and "bool" in d.message, d.message
+
+
+def test_sys_exit_in_an_extern_is_an_operation_failure(tmp_path: Path) -> None:
+    """sys.exit() in user code is the operation failing (E802), not the end of rssmc with
+    that exit code and nothing said."""
+    (tmp_path / "exiting_ops.py").write_text("import sys\n\ndef f(x):\n    sys.exit(3)\n")
+    comp = compile_text(tmp_path, _spec(
+        'extern f(x: float) -> float = "exiting_ops:f"', "          x := f(x)"))
+    _, result = run(comp, max_steps=100)
+    assert result.reason == "error", result.message
+    (d,) = result.diagnostics
+    assert d.code == "E802" and "SystemExit" in d.message, d.message

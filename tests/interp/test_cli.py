@@ -10,6 +10,8 @@ import sys
 import time
 from pathlib import Path
 
+import pytest
+
 from rssm_dsl.hpn.flatten import flatten
 from rssm_dsl.interp.trace import read_trace
 from rssm_dsl.verify import VerifyOptions, verify
@@ -266,3 +268,14 @@ def test_device_patterns_and_the_live_summary(tmp_path: Path) -> None:
     assert "device a2.E.right" in r.stdout
     r = rssmc("simulate", spec, "--device", "*.R.*=m:C")
     assert r.returncode == 2 and "no device *.R.*" in r.stderr
+
+
+@pytest.mark.parametrize("steps", [["t[nope]"], ["t[in]", "t[in]"]], ids=["unknown", "not-enabled"])
+def test_a_replay_that_diverges_reproduces_nothing(tmp_path: Path, steps: list[str]) -> None:
+    """A step that is no transition of the net, or is not enabled, is E806: the replay
+    reproduces nothing, exit 2 (1 would say a violation was reproduced)."""
+    path = tmp_path / "r.json"
+    path.write_text(json.dumps(steps), encoding="utf-8")
+    r = rssmc("simulate", EXAMPLES / "relay_blocking.rssm", "--replay", path, "-q")
+    assert r.returncode == 2, r.stderr
+    assert "E806" in r.stderr
