@@ -55,6 +55,11 @@ def output_folder(given: str | None, default: Path) -> Path | None:
         path = Path(given)
         try:
             taken = path.exists() and not path.is_dir()
+            path.resolve()
+        except RuntimeError:              # a symbolic link loop
+            problem = (f"the output folder '{_shown(given)}' (--output/-o) is a symbolic "
+                       "link loop", "name a folder, or remove the links")
+            taken = False
         except (OSError, ValueError):     # not looked up here: the writer says why
             taken = False
         if taken:
@@ -67,6 +72,47 @@ def output_folder(given: str | None, default: Path) -> Path | None:
     typer.echo(f"rssmc: error[E880]: {problem[0]}", err=True)
     typer.echo(f"  help: {problem[1]}", err=True)
     return None
+
+
+def _shown(text: str) -> str:
+    from rssm_dsl.diagnostics.diagnostic import bound_text
+
+    return bound_text(text)
+
+
+def output_file_problem(path: Path, option: str, inputs: tuple[Path, ...] = ()) -> bool:
+    """Print E880 and return True when the file ``option`` writes cannot be written as a
+    file: it is a folder, a FIFO or a device (writing would hang or fill it), a symbolic link
+    loop, or one of the command's ``inputs`` (the spec itself would be overwritten)."""
+    import stat
+
+    problem = None
+    try:
+        mode = path.stat().st_mode if path.exists() else None
+        if mode is not None and not stat.S_ISREG(mode):
+            what = "a folder" if stat.S_ISDIR(mode) else "not a regular file"
+            problem = (f"{option} '{_shown(str(path))}' is {what}",
+                       f"give {option} the name of a file to write")
+        elif mode is not None and any(_same(path, x) for x in inputs):
+            problem = (f"{option} '{_shown(str(path))}' is the specification itself",
+                       "write it to another file: it would overwrite the spec")
+    except RuntimeError:
+        problem = (f"{option} '{_shown(str(path))}' is a symbolic link loop",
+                   f"give {option} the name of a file to write")
+    except (OSError, ValueError):         # not looked up here: the writer says why
+        return False
+    if problem is None:
+        return False
+    typer.echo(f"rssmc: error[E880]: {problem[0]}", err=True)
+    typer.echo(f"  help: {problem[1]}", err=True)
+    return True
+
+
+def _same(a: Path, b: Path) -> bool:
+    try:
+        return a.samefile(b)
+    except (OSError, ValueError, RuntimeError):
+        return False
 
 
 FormatOpt = Annotated[Format, typer.Option("--format", "-f", help="How to print diagnostics.")]

@@ -19,6 +19,7 @@ from rssm_dsl.commands.common import (
     FileArg,
     Format,
     guarded,
+    output_file_problem,
     report,
 )
 from rssm_dsl.interp.watchdog import STALL_PERIODS
@@ -167,6 +168,9 @@ def simulate(
             if plot.suffix.lower() not in (".png", ".svg"):
                 typer.echo(f"rssmc: --plot {plot}: the figure is written as .png or .svg",
                            err=True)
+                return EXIT_USAGE
+        for path, option in ((trace, "--trace"), (series, "--series"), (plot, "--plot")):
+            if path is not None and output_file_problem(path, option, (file,)):
                 return EXIT_USAGE
         return _simulate(file, steps, until, mode, seed, trace, replay, devices, options,
                          workers, live, format, quiet, not all_interleavings, stall_periods,

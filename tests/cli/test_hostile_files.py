@@ -387,3 +387,24 @@ def test_fuzzed_traces_never_crash_replay_or_playback(tmp_path: Path,
         seen.setdefault(kind, set()).update({replay.exit_code, render.exit_code})
     assert len(seen) >= 8, seen               # the mutations are varied
     assert any(1 in codes or 2 in codes for codes in seen.values())
+
+
+# ---------------------------------------------------------------- files a command writes
+
+def test_an_output_file_that_is_a_fifo_the_spec_or_a_loop_is_E880(tmp_path: Path) -> None:
+    """--trace into a FIFO would hang for ever, onto the spec it would overwrite it; an
+    output folder that is a link loop: each is E880 (exit 2), nothing written or hung."""
+    spec = tmp_path / "s.rssm"
+    text = FINISHES.read_text(encoding="utf-8")
+    spec.write_text(text, encoding="utf-8")
+    fifo = tmp_path / "fifo"
+    os.mkfifo(fifo)
+    for target in (fifo, spec, tmp_path):
+        r = invoke("simulate", spec, "--until", "0.1", "--trace", target, "-q")
+        assert r.exit_code == 2 and coded(r.output, "E880"), r.output
+    assert spec.read_text(encoding="utf-8") == text
+    (tmp_path / "a").symlink_to(tmp_path / "b")
+    (tmp_path / "b").symlink_to(tmp_path / "a")
+    for command in ("compile", "render", "ros2"):
+        r = invoke(command, spec, "-o", tmp_path / "a")
+        assert r.exit_code == 2 and coded(r.output, "E880"), (command, r.output)
