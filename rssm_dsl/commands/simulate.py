@@ -127,7 +127,8 @@ def simulate(
     stall_periods: Annotated[int, typer.Option(
         "--stall-periods", min=0,
         help="Stop (E809, exit 3) when a subsystem completes no iteration for this many "
-             "periods of the slowest paced subsystem or device while the rest runs on; 0: "
+             "periods of the slowest paced subsystem or device while the rest runs on (at "
+             "least 2: the slowest completes an iteration at its next tick); 0: "
              "never.")] = STALL_PERIODS,
     all_interleavings: Annotated[bool, typer.Option(
         "--all-interleavings", help="Deterministic mode: let the seeded choice pick among "
@@ -169,6 +170,15 @@ def simulate(
                 typer.echo(f"rssmc: --plot {plot}: the figure is written as .png or .svg",
                            err=True)
                 return EXIT_USAGE
+        if stall_periods == 1:
+            # the slowest paced subsystem completes each iteration at its next tick, when the
+            # watch looks too: one period cannot tell a stall from its rhythm
+            typer.echo("rssmc: error[E890]: --stall-periods 1: give 0 (never stop) or 2 or "
+                       "more periods", err=True)
+            typer.echo("  help: a subsystem at the slowest rate completes an iteration only at "
+                       "its next tick, so one period would see every such subsystem stalled",
+                       err=True)
+            return EXIT_USAGE
         for path, option in ((trace, "--trace"), (series, "--series"), (plot, "--plot")):
             if path is not None and output_file_problem(path, option, (file,)):
                 return EXIT_USAGE

@@ -279,3 +279,13 @@ def test_a_replay_that_diverges_reproduces_nothing(tmp_path: Path, steps: list[s
     r = rssmc("simulate", EXAMPLES / "relay_blocking.rssm", "--replay", path, "-q")
     assert r.returncode == 2, r.stderr
     assert "E806" in r.stderr
+
+
+def test_one_stall_period_is_refused_two_see_no_false_stall() -> None:
+    """A subsystem at the slowest rate completes each iteration at its next tick: one
+    period would call it stalled (E890, exit 2); two see the relay run on (exit 0)."""
+    r = rssmc("simulate", EXAMPLES / "relay_blocking.rssm", "--stall-periods", "1")
+    assert r.returncode == 2 and "E890" in r.stderr, r.stderr
+    r = rssmc("simulate", EXAMPLES / "relay_blocking.rssm", "--stall-periods", "2",
+              "--until", "2", "-q")
+    assert r.returncode == 0, r.stderr
