@@ -19,6 +19,7 @@ from rssm_dsl.semantics.loader import Program
 from rssm_dsl.semantics.model import Agent, Behaviour, Buffer, Device, Subsystem, Switch, System
 from rssm_dsl.semantics.properties import check_properties
 from rssm_dsl.semantics.structure import AgentShell, Shell, StructurePass
+from rssm_dsl.semantics.typecheck import new_suggestions
 from rssm_dsl.syntax import ast
 from rssm_dsl.syntax.walk import names
 
@@ -137,6 +138,7 @@ def analyze(program: Program, bag: DiagnosticBag, memo: AgentMemo | None = None
     """The semantic model of the program (None when it has no single system); every
     problem goes to `bag`. With `memo`, agents unchanged since the last call are not
     analysed again."""
+    new_suggestions()
     start = len(bag.items)
     try:
         return _analyze(program, bag, memo)

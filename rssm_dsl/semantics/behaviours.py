@@ -356,7 +356,7 @@ class BehaviourPass:
             return
         sym = scope.lookup(root.name)
         if sym is None:
-            guess = did_you_mean(root.name, scope.names())
+            guess = did_you_mean(root.name, scope.names)
             self.bag.error("E102", f"'{root.name}' is not declared here", root.span,
                            f"did you mean '{guess}'?" if guess else None)
             self.checker.check(stmt.value, scope)

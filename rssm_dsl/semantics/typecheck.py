@@ -37,9 +37,27 @@ BUILTIN_CONSTS: dict[str, tuple[Type, float]] = {"pi": (FLOAT, 3.141592653589793
                                                  "inf": (FLOAT, float("inf"))}
 
 
-def did_you_mean(name: str, candidates: Iterable[str]) -> str | None:
-    """The declared name closest to a misspelt one (same letters in another case first)."""
-    pool = sorted(set(candidates))
+# "did you mean" costs a pass over every candidate: a file of thousands of undeclared names
+# would take minutes (quadratic). After this many suggestions in one analysis, none more: the
+# first ones are what a person reads (analyze() starts the count again).
+SUGGESTIONS_AT_MOST = 200
+_suggested = [0]
+
+
+def new_suggestions() -> None:
+    """A new analysis: the count of suggestions starts again."""
+    _suggested[0] = 0
+
+
+def did_you_mean(name: str, candidates: Iterable[str] | Callable[[], Iterable[str]]
+                 ) -> str | None:
+    """The declared name closest to a misspelt one (same letters in another case first);
+    None after SUGGESTIONS_AT_MOST suggestions in this analysis (``candidates`` may be a
+    function giving them: it is then not called)."""
+    _suggested[0] += 1
+    if _suggested[0] > SUGGESTIONS_AT_MOST:
+        return None
+    pool = sorted(set(candidates() if callable(candidates) else candidates))
     same = [c for c in pool if c.lower() == name.lower()]
     if same:
         return same[0]
@@ -246,7 +264,7 @@ class ExprChecker:
         if sym is None:
             if e.name in BUILTIN_CONSTS:
                 return BUILTIN_CONSTS[e.name][0]
-            guess = did_you_mean(e.name, scope.names())
+            guess = did_you_mean(e.name, scope.names)
             self.bag.error("E102", f"'{e.name}' is not declared here", e.span,
                            f"did you mean '{guess}'?" if guess
                            else "declare it as memory, param, a buffer or a const")

@@ -164,6 +164,21 @@ def test_check_a_megabyte_of_broken_agents(tmp_path: Path, sep: str) -> None:
     assert run.seconds < BOUND and run.peak_mb < 500
 
 
+def test_check_a_megabyte_of_undeclared_names(tmp_path: Path) -> None:
+    """Each undeclared name may get a "did you mean" over every declared one: a file of
+    tens of thousands of them was quadratic (8,000 lines: 43 s); the suggestions stop after
+    SUGGESTIONS_AT_MOST in one analysis."""
+    lines, size = [], 0
+    while size < MB:
+        k = len(lines)
+        lines.append(f"const c{k}: int = zz{k}\n")
+        size += len(lines[-1])
+    (tmp_path / "undeclared.rssm").write_text("".join(lines))
+    run = rssmc("check", "undeclared.rssm", cwd=tmp_path)
+    assert run.code == 1 and "[E102]" in run.stderr and "Traceback" not in run.stderr
+    assert run.seconds < BOUND and run.peak_mb < 500
+
+
 # ================================================================ 2. nesting (E008)
 
 
