@@ -31,6 +31,7 @@ from typing import Any
 from rssm_core.records import dataclass
 
 SERIES_FORMAT = 1
+KINDS = ("number", "category")
 
 
 class SeriesFormatError(Exception):
@@ -76,23 +77,54 @@ def write_series(path: Path, system: str, series: list[Series]) -> None:
 
 
 def read_series(path: Path) -> tuple[str, list[Series]]:
-    """The system's name and its series, as written by :func:`write_series`."""
+    """The system's name and its series, as written by :func:`write_series`; each checked
+    (:func:`malformed`). Anything else is :class:`SeriesFormatError`."""
     import numpy as np
 
     try:
         with np.load(path, allow_pickle=False) as data:
             meta = json.loads(str(data["meta"]))
+            if not isinstance(meta, dict):
+                raise SeriesFormatError("not a series file: its meta is no JSON object")
             if meta.get("format") != SERIES_FORMAT:
                 raise SeriesFormatError(f"series format {meta.get('format')!r}, not "
                                         f"{SERIES_FORMAT}")
             out = [Series(s["name"], s["subsystem"], s["kind"], list(s["labels"]),
                           data[f"t{k}"], data[f"v{k}"])
                    for k, s in enumerate(meta["series"])]
-            return str(meta["system"]), out
+            system = str(meta["system"])
     except SeriesFormatError:
         raise
-    except (OSError, ValueError, KeyError, TypeError, json.JSONDecodeError) as e:
+    except RecursionError:
+        raise SeriesFormatError("not a series file: its meta is nested too deeply") from None
+    except (OSError, ValueError, KeyError, TypeError, AttributeError, IndexError,
+            json.JSONDecodeError) as e:
         raise SeriesFormatError(f"not a series file: {e}") from None
+    for one in out:
+        problem = malformed(one)
+        if problem is not None:
+            raise SeriesFormatError(f"series '{one.name}': {problem}")
+    return system, out
+
+
+def malformed(s: Series) -> str | None:
+    """What is wrong with a series read from a file, or None."""
+    import numpy as np
+
+    if not isinstance(s.name, str) or not isinstance(s.subsystem, str):
+        return "its name or subsystem is not a string"
+    if s.kind not in KINDS:
+        return f"kind {s.kind!r} is neither {' nor '.join(KINDS)}"
+    if not all(isinstance(x, str) for x in s.labels):
+        return "its labels are not strings"
+    t, v = np.asarray(s.t), np.asarray(s.v)
+    if t.ndim != 1 or v.ndim != 1 or t.shape != v.shape:
+        return f"its times {t.shape} and values {v.shape} are not two columns of one length"
+    if not (np.issubdtype(t.dtype, np.number) and np.issubdtype(v.dtype, np.number)):
+        return "its times or values are not numbers"
+    if not np.isfinite(t.astype(np.float64)).all():
+        return "a time is not a finite number"
+    return None
 
 
 def matches(name: str, patterns: Sequence[str]) -> bool:

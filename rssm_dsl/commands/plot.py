@@ -39,8 +39,8 @@ def plot(
 
         try:
             system, series = read_series(file)
-        except SeriesFormatError as e:
-            typer.echo(f"rssmc: {file}: {e}", err=True)
+        except SeriesFormatError as e:      # the code render --series gives it too
+            typer.echo(f"rssmc: error[E856]: {file}: {e}", err=True)
             return EXIT_USAGE
         if select:
             chosen, unmatched = select_series(series, select)

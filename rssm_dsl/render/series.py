@@ -34,7 +34,6 @@ MAX_POINTS = 2000          # points a series at most
 MIN_POINTS = 200           # ... and at least, when many series share the budget
 TOTAL_POINTS = 200_000     # the points of all series, when there are many
 MAX_SERIES = 500           # series drawn at most (the most `rssmc simulate` records)
-KINDS = ("number", "category")
 _T_DIGITS, _V_DIGITS = 9, 7  # significant digits embedded (times, values)
 
 
@@ -160,22 +159,6 @@ def charts(series: list[Series]) -> tuple[Chart, ...]:
 # ------------------------------------------------------------------ reading
 
 
-def _malformed(s: Any) -> str | None:
-    """What is wrong with a series read from a file, or None."""
-    if s.kind not in KINDS:
-        return f"kind {s.kind!r} is neither {' nor '.join(KINDS)}"
-    if not all(isinstance(x, str) for x in s.labels):
-        return "its labels are not strings"
-    t, v = np.asarray(s.t), np.asarray(s.v)
-    if t.ndim != 1 or v.ndim != 1 or t.shape != v.shape:
-        return f"its times {t.shape} and values {v.shape} are not two columns of one length"
-    if not (np.issubdtype(t.dtype, np.number) and np.issubdtype(v.dtype, np.number)):
-        return "its times or values are not numbers"
-    if not np.isfinite(t.astype(np.float64)).all():
-        return "a time is not a finite number"
-    return None
-
-
 def _read(path: Path, bag: DiagnosticBag) -> tuple[str, list[Series]] | None:
     source = str(path)
     hint = "give a series file written by `rssmc simulate SPEC --series FILE.npz`"
@@ -183,16 +166,10 @@ def _read(path: Path, bag: DiagnosticBag) -> tuple[str, list[Series]] | None:
         bag.error("E856", f"cannot read '{path}': no such file", _at(source), hint)
         return None
     try:
-        system, series = read_series(path)
+        system, series = read_series(path)      # each series checked (rssm_core/series.py)
     except SeriesFormatError as e:
         bag.error("E856", f"'{path}' is not a series file: {e}", _at(source), hint)
         return None
-    for s in series:
-        problem = _malformed(s)
-        if problem is not None:
-            bag.error("E856", f"'{path}' is not a series file: series '{s.name}': {problem}",
-                      _at(source), hint)
-            return None
     if not series:
         bag.error("E856", f"'{path}' holds no series", _at(source), hint)
         return None

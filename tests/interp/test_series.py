@@ -126,3 +126,35 @@ def test_a_series_file_grows_with_samples_not_firings(tmp_path: Path) -> None:
     assert npz.stat().st_size < trace.stat().st_size / 50
     events = [json.loads(x) for x in trace.read_text().splitlines()]
     assert len(events) > 10 * len(count.t)
+
+
+def _npz(path: Path, meta: str, arrays: dict[str, list[float]]) -> Path:
+    np.savez(path, meta=np.array(meta), **{k: np.asarray(v) for k, v in arrays.items()})
+    return path
+
+
+@pytest.mark.parametrize("kind", ["deep-meta", "meta-list", "lengths", "kind", "nan-time"])
+def test_a_bad_series_file_is_E856_in_plot_and_render(tmp_path: Path, kind: str) -> None:
+    """One reading (rssm_core/series.py) for both commands: a meta nested too deeply, one
+    that is no object, times and values of different lengths, a kind that is neither, a
+    time that is not finite: E856 (plot exit 2, render exit 1), never E900."""
+    one = {"name": "a1.c.count", "subsystem": "a1.c", "kind": "number", "labels": []}
+    t: list[float] = [0.0, 0.1, 0.2]
+    if kind == "deep-meta":
+        meta = "[" * 100_000 + "]" * 100_000
+    elif kind == "meta-list":
+        meta = "[1, 2]"
+    else:
+        if kind == "kind":
+            one["kind"] = "weird"
+        if kind == "nan-time":
+            t = [0.0, float("nan"), 0.2]
+        meta = json.dumps({"format": 1, "system": "relay", "series": [one]})
+    path = _npz(tmp_path / "s.npz", meta,
+                {"t0": t, "v0": [1.0, 2.0] if kind == "lengths" else [1.0, 2.0, 3.0]})
+    with pytest.raises(SeriesFormatError):
+        read_series(path)
+    r = _rssmc("plot", path, "-o", tmp_path / "p.svg")
+    assert r.returncode == 2 and "E856" in r.stderr and "Traceback" not in r.stderr, r.stderr
+    r = _rssmc("render", RELAY, "--series", path, "-o", tmp_path / "out")
+    assert r.returncode == 1 and "E856" in r.stderr and "Traceback" not in r.stderr, r.stderr
