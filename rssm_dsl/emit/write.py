@@ -3,6 +3,7 @@ then moved into place; on any failure the target folder is left as it was."""
 
 from __future__ import annotations
 
+import errno
 import os
 import shutil
 import tempfile
@@ -33,6 +34,7 @@ def write_outputs(target: Path, files: Mapping[str, str | bytes],
             else:
                 path.write_text(text, encoding="utf-8")
         target.mkdir(parents=True, exist_ok=True)
+        _check_places(target, files, tuple(replace_dirs))
         for sub in replace_dirs:
             shutil.rmtree(target / sub, ignore_errors=True)
         written: list[Path] = []
@@ -44,3 +46,23 @@ def write_outputs(target: Path, files: Mapping[str, str | bytes],
         return written
     finally:
         shutil.rmtree(staging, ignore_errors=True)
+
+
+def _check_places(target: Path, files: Mapping[str, str | bytes],
+                  replaced: tuple[str, ...]) -> None:
+    """Raise before anything is moved when an output's place is taken: the file's name by a
+    folder (or a FIFO, a device), or one of its folders by a file; so that a failure leaves
+    the target as it was, not half written."""
+    for rel in files:
+        if any(rel == sub or rel.startswith(sub + "/") for sub in replaced):
+            continue
+        dest = target / rel
+        if not dest.is_symlink() and dest.exists() and not dest.is_file():
+            raise OSError(errno.EISDIR, "the place of an output file is taken by something "
+                          "that is not a regular file", str(dest))
+        for parent in dest.parents:
+            if parent == target:
+                break
+            if parent.exists() and not parent.is_dir():
+                raise OSError(errno.ENOTDIR, "the folder of an output file is taken by a "
+                              "file", str(parent))

@@ -408,3 +408,16 @@ def test_an_output_file_that_is_a_fifo_the_spec_or_a_loop_is_E880(tmp_path: Path
     for command in ("compile", "render", "ros2"):
         r = invoke(command, spec, "-o", tmp_path / "a")
         assert r.exit_code == 2 and coded(r.output, "E880"), (command, r.output)
+
+
+@pytest.mark.parametrize(("command", "taken"), [("compile", "iteration.hpn.json"),
+                                                ("render", "index.html")])
+def test_an_output_whose_place_is_a_folder_writes_nothing(tmp_path: Path, command: str,
+                                                          taken: str) -> None:
+    """A file the command would write is a folder in the target: it fails before it moves
+    anything into place (before, the files sorted ahead of it were already there)."""
+    out = tmp_path / "out"
+    (out / taken).mkdir(parents=True)
+    r = invoke(command, FINISHES, "-o", out)
+    assert r.exit_code == 2 and "Traceback" not in r.output, r.output
+    assert sorted(p.relative_to(out).as_posix() for p in out.rglob("*")) == [taken]
