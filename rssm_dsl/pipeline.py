@@ -2,14 +2,12 @@
 
 from __future__ import annotations
 
-import gc
-from collections.abc import Iterator
-from contextlib import contextmanager
 from pathlib import Path
 from typing import TYPE_CHECKING
 
 from rssm_core.records import dataclass
 from rssm_dsl.diagnostics import Diagnostic, DiagnosticBag
+from rssm_dsl.gcpause import collector_paused
 from rssm_dsl.semantics.analyze import AgentMemo, analyze
 from rssm_dsl.semantics.loader import Loader, Program
 from rssm_dsl.semantics.model import System
@@ -32,24 +30,11 @@ class Compilation:
         return not any(d.is_error for d in self.diagnostics)
 
 
-@contextmanager
-def _no_gc() -> Iterator[None]:
-    """The compiler allocates many small objects and frees none of them in cycles while it
-    runs; the cyclic collector would only rescan them (30% of the time on large specs)."""
-    was_enabled = gc.isenabled()
-    gc.disable()
-    try:
-        yield
-    finally:
-        if was_enabled:
-            gc.enable()
-
-
 def compile_file(path: Path, overrides: dict[Path, str] | None = None,
                  build: bool = True, memo: AgentMemo | None = None) -> Compilation:
     """Compile one root file. Never raises on bad input: problems are diagnostics. With
     `memo` (see semantics.analyze), agents analysed before are reused."""
-    with _no_gc():
+    with collector_paused():
         return _compile(path, overrides, build, memo)
 
 

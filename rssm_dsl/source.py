@@ -164,3 +164,16 @@ class SourceFile:
         if end > start and self.text[end - 1] == "\r":
             end -= 1                               # CRLF
         return self.text[start:end]
+
+
+def file_kind(mode: int) -> str:
+    """What a file that is not a regular file is, as an aside of a message: " (a FIFO)";
+    empty for a regular file (``mode``: ``os.stat(...).st_mode``)."""
+    import stat
+
+    for test, what in ((stat.S_ISDIR, "a folder"), (stat.S_ISFIFO, "a FIFO"),
+                       (stat.S_ISCHR, "a character device"), (stat.S_ISBLK, "a block device"),
+                       (stat.S_ISSOCK, "a socket")):
+        if test(mode):
+            return f" ({what})"
+    return ""

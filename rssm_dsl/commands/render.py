@@ -154,12 +154,8 @@ def _playback(trace: Path, net: FlatNet, bag: DiagnosticBag, window: Window) -> 
     are each at most MAX_FILE_BYTES, so the reader never blocks on a FIFO nor reads
     /dev/zero without end; a JSON value nested too deeply for the decoder, or an integer of
     more digits than Python converts, is E852 too (json_problem)."""
-    from rssm_dsl.interp.trace import (
-        TraceFileError,
-        collector_paused,
-        json_problem,
-        scan_trace_file,
-    )
+    from rssm_dsl.gcpause import collector_paused
+    from rssm_dsl.interp.trace import TraceFileError, json_problem, scan_trace_file
     from rssm_dsl.render.playback import load_playback
     from rssm_dsl.source import Span
 

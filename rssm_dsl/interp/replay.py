@@ -164,7 +164,8 @@ def load_counterexample(path: Path) -> Counterexample:
     :class:`ReplayFileError`. Read within bounds (rssm_dsl/interp/trace.py): a regular file;
     a trace of JSON lines streamed a line at a time, each line at most ``MAX_FILE_BYTES``; a
     JSON document (a report, a counterexample, a list) at most ``MAX_REPORT_BYTES`` in all."""
-    from rssm_dsl.interp.trace import TraceFileError, check_trace_file, collector_paused
+    from rssm_dsl.gcpause import collector_paused
+    from rssm_dsl.interp.trace import TraceFileError, check_trace_file
 
     try:
         size = check_trace_file(path)

@@ -19,22 +19,20 @@ converts (a ``ValueError``) is a malformed line, not a crash (:func:`json_proble
 
 from __future__ import annotations
 
-import gc
 import json
 import os
 import stat
 import sys
 from collections.abc import Iterator
-from contextlib import contextmanager
 from pathlib import Path
 from typing import IO, Any
 
 from rssm_core.trace import BATCH, TraceFormatError, TraceWriter
 from rssm_core.trace import read_trace as read_events
-from rssm_dsl.source import MAX_FILE_BYTES
+from rssm_dsl.source import MAX_FILE_BYTES, file_kind
 
 __all__ = ["BATCH", "MAX_FILE_BYTES", "TraceFileError", "TraceFormatError", "TraceWriter",
-           "bounded_lines", "check_trace_file", "collector_paused", "json_problem",
+           "bounded_lines", "check_trace_file", "json_problem",
            "read_events", "read_trace", "scan_trace_file", "starts_with_event", "too_large"]
 
 _CHUNK = 1 << 20
@@ -50,20 +48,6 @@ class TraceFileError(Exception):
         self.message = message
         self.line = line
         self.hint = hint
-
-
-@contextmanager
-def collector_paused() -> Iterator[None]:
-    """The cyclic garbage collector off while a trace or a JSON document is decoded: the
-    decoder makes millions of containers and frees none in cycles, and the collector's
-    passes over them would take three times as long as the decoding (8 MB of ``[[],...]``)."""
-    was_enabled = gc.isenabled()
-    gc.disable()
-    try:
-        yield
-    finally:
-        if was_enabled:
-            gc.enable()
 
 
 def json_problem(e: BaseException) -> str | None:
@@ -82,15 +66,6 @@ def _mb(n: int) -> str:
     return f"{n / (1 << 20):g} MB"
 
 
-def _kind(mode: int) -> str:
-    for test, what in ((stat.S_ISDIR, "a folder"), (stat.S_ISFIFO, "a FIFO"),
-                       (stat.S_ISCHR, "a character device"), (stat.S_ISBLK, "a block device"),
-                       (stat.S_ISSOCK, "a socket")):
-        if test(mode):
-            return f" ({what})"
-    return ""
-
-
 def check_trace_file(path: Path) -> int:
     """The size of the trace or counterexample file ``path``, which must be a regular file;
     else :class:`TraceFileError` (it is not there, cannot be looked up, or is a folder, a
@@ -103,7 +78,7 @@ def check_trace_file(path: Path) -> int:
         raise TraceFileError(f"cannot read '{path}': {reason}",
                              hint="check the path of the file") from None
     if not stat.S_ISREG(info.st_mode):
-        raise TraceFileError(f"'{path}' is not a regular file{_kind(info.st_mode)}",
+        raise TraceFileError(f"'{path}' is not a regular file{file_kind(info.st_mode)}",
                              hint="give a trace file of `rssmc simulate --trace` or a report "
                              "of `rssmc verify --format json`")
     return info.st_size

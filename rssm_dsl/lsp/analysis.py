@@ -12,16 +12,15 @@ real-span AST are built on first use (hover, outline...), not before the diagnos
 
 from __future__ import annotations
 
-import gc
 import logging
 import threading
-from collections.abc import Callable, Iterator
-from contextlib import contextmanager
+from collections.abc import Callable
 from dataclasses import field, replace
 from pathlib import Path
 
 from rssm_core.records import dataclass
 from rssm_dsl.diagnostics import Diagnostic, DiagnosticBag, Severity
+from rssm_dsl.gcpause import collector_paused
 from rssm_dsl.lsp.incremental import Reparsed, ShiftMap, State, map_diagnostic, map_module, reparse
 from rssm_dsl.lsp.index import Occurrence, SymbolIndex, build_index, system_id
 from rssm_dsl.lsp.paths import path_of_display, resolved
@@ -46,18 +45,6 @@ log = logging.getLogger("rssmc.lsp")
 MAX_LIVE_CHARS = 2_000_000
 MAX_REINDEX = 64       # agent edits applied to the last index built, at most (then: all)
 SYNTAX_CODES = frozenset({"E005", "E006", "E007", "E008", "E013"})
-
-
-@contextmanager
-def _no_gc() -> Iterator[None]:
-    """The index allocates many small objects and frees none of them in cycles."""
-    was_enabled = gc.isenabled()
-    gc.disable()
-    try:
-        yield
-    finally:
-        if was_enabled:
-            gc.enable()
 
 
 @dataclass
@@ -105,12 +92,12 @@ class LazyIndex:
     def get(self) -> SymbolIndex:
         with self.lock:
             if self.value is None and self.base is not None and self.shifts is not None:
-                with _no_gc():
+                with collector_paused():
                     self.value = self._reindexed(self.base, self.shifts.display)
                 self.base, self.edits = None, ()
             if self.value is None:
                 if self.program is not None:
-                    with _no_gc():
+                    with collector_paused():
                         index = build_index(self.program)
                         if self.shifts is not None:
                             index = _map_index(index, self.shifts)
@@ -216,7 +203,7 @@ class LazyModule:
                 if self.shifts is None:
                     self.value = self.stale
                 else:
-                    with _no_gc():
+                    with collector_paused():
                         self.value = map_module(self.stale, self.shifts)
             return self.value
 
@@ -454,7 +441,7 @@ def _incremental(uri: str, path: Path, display: str, text: str, version: int | N
         return None
     bag = DiagnosticBag()
     try:
-        with _no_gc():
+        with collector_paused():
             system = analyze(got.program, bag, got.state.memo)
     except Exception:
         if not got.state.broken:

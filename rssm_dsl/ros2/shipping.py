@@ -36,6 +36,7 @@ import rssm_core
 from rssm_core.records import dataclass
 from rssm_dsl.bindings import STDLIB_PACKAGE, BindingError, find_module
 from rssm_dsl.resources import stdlib_dir
+from rssm_dsl.source import file_kind
 
 SKIP_DIRS = {"__pycache__"}
 SKIP_SUFFIXES = {".pyc", ".pyo", ".rssm"}
@@ -135,13 +136,8 @@ def _entry(path: Path, root: Path, python: bool = True) -> tuple[Path | None, st
 
 
 def _kind(mode: int) -> str:
-    if stat.S_ISFIFO(mode):
-        return "a FIFO"
-    if stat.S_ISSOCK(mode):
-        return "a socket"
-    if stat.S_ISCHR(mode) or stat.S_ISBLK(mode):
-        return "a device"
-    return "a special file"
+    """"a FIFO", "a character device", ... (rssm_dsl.source.file_kind's words)."""
+    return file_kind(mode).strip(" ()") or "a special file"
 
 
 def read_shipped(path: Path) -> bytes:

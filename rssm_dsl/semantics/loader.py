@@ -24,7 +24,7 @@ from rssm_core.records import dataclass
 from rssm_dsl.diagnostics import DiagnosticBag
 from rssm_dsl.filenames import MAX_NAME_LENGTH, is_file, name_problem
 from rssm_dsl.resources import stdlib_dir
-from rssm_dsl.source import MAX_FILE_BYTES, SourceFile, Span, describe_char
+from rssm_dsl.source import MAX_FILE_BYTES, SourceFile, Span, describe_char, file_kind
 from rssm_dsl.syntax import ast
 from rssm_dsl.syntax.parser import parse
 
@@ -84,7 +84,7 @@ def read_source(
                   "check the path; imports are looked up next to the importing file, then in the stdlib")
         return None
     if not stat.S_ISREG(info.st_mode):
-        bag.error("E002", f"'{path}' is not a regular file{_kind_of(info.st_mode)}", at,
+        bag.error("E002", f"'{path}' is not a regular file{file_kind(info.st_mode)}", at,
                   "give the path of a .rssm file")
         return None
     try:
@@ -107,16 +107,6 @@ def read_source(
                   "save the file as UTF-8")
         return None
     return SourceFile(shown, text.removeprefix("\ufeff"))
-
-
-def _kind_of(mode: int) -> str:
-    """What a file that is not a regular file is, as an aside of the E002 message."""
-    for test, what in ((stat.S_ISDIR, "a folder"), (stat.S_ISFIFO, "a FIFO"),
-                       (stat.S_ISCHR, "a character device"), (stat.S_ISBLK, "a block device"),
-                       (stat.S_ISSOCK, "a socket")):
-        if test(mode):
-            return f" ({what})"
-    return ""
 
 
 def _lookup_failure(e: OSError | ValueError) -> str:
