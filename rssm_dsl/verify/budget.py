@@ -397,6 +397,8 @@ def parse_size(text: str) -> int:
     value = _finite(s) * factor
     if value < 1:
         raise ValueError("the size must be positive")
+    if value < MB:      # 1K was taken as a limit of 0 MB, reached before anything ran
+        raise ValueError("the size must be at least 1M (the verifier itself takes more)")
     if value > MAX_SIZE:
         raise ValueError(f"the size must be at most {MAX_SIZE >> 40}T (no machine has more)")
     return int(value)
