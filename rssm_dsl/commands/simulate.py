@@ -45,12 +45,19 @@ if TYPE_CHECKING:
 
 
 
+def _quoted(text: str) -> str:
+    """A user's option value in a message: quoted, control characters escaped, cut short."""
+    from rssm_dsl.diagnostics.diagnostic import bound_text
+
+    return f"'{bound_text(text)}'"
+
+
 def _pairs(values: list[str], what: str, sep: str) -> dict[str, str]:
     out: dict[str, str] = {}
     for v in values:
         key, ok, value = v.partition(sep)
         if not ok or not key.strip() or not value.strip():
-            raise typer.BadParameter(f"'{v}' is not {what}")
+            raise typer.BadParameter(f"{_quoted(v)} is not {what}")
         out[key.strip()] = value.strip()
     return out
 
@@ -61,7 +68,8 @@ def _device_options(values: list[str]) -> dict[str, dict[str, str]]:
         target, ok, setting = v.partition(":")
         key, ok2, value = setting.partition("=")
         if not (ok and ok2 and target and key):
-            raise typer.BadParameter(f"'{v}' is not ID:KEY=VALUE (e.g. a1.R.cam:file=cam.csv)")
+            raise typer.BadParameter(f"{_quoted(v)} is not ID:KEY=VALUE (e.g. "
+                                     "a1.R.cam:file=cam.csv)")
         out.setdefault(target.strip(), {})[key.strip()] = value
     return out
 
