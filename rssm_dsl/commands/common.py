@@ -56,6 +56,11 @@ def output_folder(given: str | None, default: Path) -> Path | None:
         try:
             taken = path.exists() and not path.is_dir()
             path.resolve()
+            in_file = next((p for p in path.parents if p.exists() and not p.is_dir()), None)
+            if in_file is not None and not taken:
+                problem = (f"the output folder '{_shown(given)}' (--output/-o) is inside "
+                           f"'{_shown(str(in_file))}', which is a file, not a folder",
+                           "name a folder whose parents are folders")
         except RuntimeError:              # a symbolic link loop
             problem = (f"the output folder '{_shown(given)}' (--output/-o) is a symbolic "
                        "link loop", "name a folder, or remove the links")
@@ -170,7 +175,7 @@ def guarded(fn: Callable[[], int]) -> None:
             what = f"{e.strerror or type(e).__name__}{where}"
         else:
             what = str(e)
-        typer.echo(f"rssmc: error: {bound_text(what)}", err=True)
+        typer.echo(f"rssmc: error[E881]: {bound_text(what)}", err=True)
         typer.echo("  help: check the paths given to the command (the files it writes: "
                    "--output/-o, --trace, ...) and their permissions; if they are right, this "
                    "is a bug in rssmc: please report it (set RSSMC_DEBUG=1 for the traceback)",

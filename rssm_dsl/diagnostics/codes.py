@@ -55,7 +55,7 @@ CODES: tuple[Code, ...] = (
     Code("E206", "bad-index", _E, "an index out of range or on a non-array"),
     Code("E207", "unknown-field", _E, "a record field that does not exist"),
     Code("E208", "bad-binding", _E, "an external binding is not of the form module:function"),
-    Code("E209", "bad-frequency", _E, "a frequency that is not positive"),
+    Code("E209", "bad-frequency", _E, "a frequency that is not positive or is above 100 kHz"),
     Code("E210", "empty-enum", _E, "an enum without members"),
     Code("E211", "duplicate-enum-member", _E, "an enum member declared twice"),
     Code("E212", "unknown-enum-member", _E, "a member that the enum does not have"),
@@ -158,6 +158,9 @@ CODES: tuple[Code, ...] = (
     # output folders (rssmc compile, rssmc render)
     Code("E880", "bad-output-folder", _E,
          "the output folder given with --output/-o is empty or is not a folder"),
+    Code("E881", "file-system-error", _E,
+         "a file the command reads or writes cannot be: no permission, a full disk, a path "
+         "the file system refuses"),
     # the command line
     Code("E890", "bad-option-value", _E,
          "a numeric option's value is not a number the command accepts"),

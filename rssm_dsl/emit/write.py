@@ -23,8 +23,11 @@ def write_outputs(target: Path, files: Mapping[str, str | bytes],
     for rel in files:
         check_output_path(rel)
     target = target.resolve()
-    target.parent.mkdir(parents=True, exist_ok=True)
-    staging = Path(tempfile.mkdtemp(prefix=".rssmc-", dir=target.parent))
+    try:
+        target.parent.mkdir(parents=True, exist_ok=True)
+        staging = Path(tempfile.mkdtemp(prefix=".rssmc-", dir=target.parent))
+    except OSError as e:                  # name the user's folder, not the staging one
+        raise OSError(e.errno, e.strerror, str(target)) from e
     try:
         for rel, text in files.items():
             path = staging / rel

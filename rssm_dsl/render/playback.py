@@ -232,6 +232,11 @@ def _document(path: Path, source: str, bag: DiagnosticBag) -> tuple[str, Iterato
                   "trace of JSON lines", _at(source))
         return None
     text = path.read_text(encoding="utf-8")
+    if not text.strip():                  # as `simulate --replay` says of it
+        bag.error("E852", f"'{path}' holds no firing sequence (the file is empty)",
+                  _at(source), "give a trace of `rssmc simulate` (JSON lines) or a verifier "
+                  "counterexample (a list of transition ids)")
+        return None
     try:
         doc = json.loads(text)
     except json.JSONDecodeError:

@@ -186,12 +186,13 @@ class Loader:
         """The file an import names, or None with the problem reported: no file (E009), or
         a quoted path that names a file that is not a spec (E014: it is never read, so
         nothing of it is shown, in the terminal or the editor).
-        A quoted path that is there but is no regular file or cannot be looked up (a
-        symbolic link loop, no permission) is returned: :func:`read_source` says why."""
+        A path, quoted or dotted, that is there but is no regular file or cannot be looked
+        up (a FIFO, a symbolic link loop, no permission) is returned: :func:`read_source`
+        says why (E001, E002), the same for `import "fifo.rssm"` and `import fifo`."""
         candidates = _candidates(imp, importer)
         target = next((c for c in candidates if is_file(c)), None)
-        if target is None and imp.quoted and _exists(candidates[0]):
-            target = candidates[0]
+        if target is None:
+            target = next((c for c in candidates if _exists(c)), None)
         if target is None:
             self.bag.error(
                 "E009", f"cannot find module '{imp.path}'", imp.span,

@@ -14,6 +14,11 @@ from rssm_dsl.semantics.types import Type, assignable
 from rssm_dsl.source import Span
 from rssm_dsl.syntax import ast
 
+# The highest frequency a subsystem or device may be given: above the fastest loops of robot
+# hardware (drives' current loops, 10-40 kHz); 1 s of a 1 GHz subsystem would be 10^9
+# iterations for the interpreter (E209).
+MAX_HERTZ = 100_000.0
+
 
 @dataclass
 class Shell:
@@ -143,6 +148,12 @@ class StructurePass:
         if f.hertz <= 0:
             self.bag.error("E209", f"a frequency must be positive, not {f.hertz:g} Hz", f.span,
                            "leave the frequency out to run as fast as communication allows")
+            return None
+        if f.hertz > MAX_HERTZ:
+            self.bag.error("E209", f"a frequency must be at most {MAX_HERTZ / 1000:g} kHz, not "
+                           f"{f.hertz:g} Hz", f.span,
+                           "a controller's loop runs at most at tens of kHz; leave the "
+                           "frequency out to run as fast as communication allows")
             return None
         return f.hertz
 

@@ -286,6 +286,12 @@ class Budget:
         self._measure(time.monotonic())
         return self._rss
 
+    def peak_resident(self) -> int:
+        """The peak resident size of the run, bytes, for its report: the kernel's high-water
+        mark of this process and of the largest child it waited for (SPIN, a worker), or
+        what was sampled where the kernel does not say (the samples miss short peaks)."""
+        return max(self.peak, self.resident(), high_water_mark())
+
     def _measure(self, now: float) -> None:
         self._measured = now
         self._rss = resident_memory()
@@ -322,6 +328,18 @@ def resident_memory(pid: int | str = "self") -> int:
         return 0
     peak = resource.getrusage(resource.RUSAGE_SELF).ru_maxrss
     return int(peak) * (1 if os.uname().sysname == "Darwin" else 1024)
+
+
+def high_water_mark() -> int:
+    """The peak resident size of this process or of the largest of its waited-for children,
+    bytes (``getrusage``); 0 when unknown."""
+    try:
+        import resource
+    except ImportError:
+        return 0
+    unit = 1 if os.uname().sysname == "Darwin" else 1024
+    return unit * max(int(resource.getrusage(who).ru_maxrss)
+                      for who in (resource.RUSAGE_SELF, resource.RUSAGE_CHILDREN))
 
 
 def _meminfo(field: str) -> int | None:

@@ -46,7 +46,7 @@ class PartialReport:
             if depth <= SHOWN_DEPTH and name not in seen:
                 seen[name] = seconds
         return cls(system, file, stop, tuple(seen.items()), interrupted, budget.elapsed(),
-                   budget.time_limit, budget.max_memory, max(budget.peak, budget.resident()),
+                   budget.time_limit, budget.max_memory, budget.peak_resident(),
                    progress_requested, properties)
 
     @property

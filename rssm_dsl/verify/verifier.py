@@ -268,7 +268,7 @@ def verify(net: FlatNet, options: VerifyOptions | None = None) -> VerifyReport:
                                               ("the stubborn-set exploration", reduced))),
         time_limit=budget.time_limit,
         max_memory=budget.max_memory,
-        peak_memory=max(budget.peak, budget.resident()),
+        peak_memory=budget.peak_resident(),
     )
 
 

@@ -100,10 +100,13 @@ def test_a_root_spec_that_is_a_symlink_loop_is_E001_everywhere(tmp_path: Path,
     assert not out.exists()
 
 
+@pytest.mark.parametrize("form", ['"other.rssm"', "other"])
 @pytest.mark.parametrize(("kind", "code"), [("loop", "E001"), ("fifo", "E002"),
                                            ("folder", "E002")])
 def test_an_import_that_names_no_readable_file_says_why_at_the_import(
-        tmp_path: Path, kind: str, code: str) -> None:
+        tmp_path: Path, kind: str, code: str, form: str) -> None:
+    """Quoted (`import "other.rssm"`) or dotted (`import other`), the same reason: the
+    dotted form said "cannot find module" (E009) of a FIFO that is there."""
     target = tmp_path / "other.rssm"
     if kind == "loop":
         target.symlink_to("other.rssm")
@@ -112,7 +115,7 @@ def test_an_import_that_names_no_readable_file_says_why_at_the_import(
     else:
         target.mkdir()
     spec = tmp_path / "s.rssm"
-    spec.write_text('import "other.rssm"\n' + (FINISHES.read_text(encoding="utf-8")))
+    spec.write_text(f"import {form}\n" + (FINISHES.read_text(encoding="utf-8")))
     comp = compile_file(spec)
     (d,) = [d for d in comp.diagnostics if d.is_error]
     assert d.code == code and d.span.line == 1
@@ -147,7 +150,8 @@ def _deep(depth: int) -> str:
 
 
 @pytest.mark.parametrize("kind", ["deep-document", "deep-line", "deep-later-line", "latin1",
-                                  "huge-integer", "long-line", "large-document"])
+                                  "huge-integer", "long-line", "large-document", "empty",
+                                  "blank"])
 def test_a_malformed_trace_is_E852(tmp_path: Path, finished_trace: Path, kind: str,
                                    monkeypatch: pytest.MonkeyPatch) -> None:
     # a report --replay reads whole may be 256 MB: the test lowers that cap to 8 MB
@@ -168,6 +172,10 @@ def test_a_malformed_trace_is_E852(tmp_path: Path, finished_trace: Path, kind: s
     elif kind == "long-line":                 # a line of 9 MB: more than MAX_FILE_BYTES
         data = b"\n".join([lines[0], b'{"event":"fire","transition":"' + b"x" * (9 << 20)
                            + b'"}'])
+    elif kind == "empty":                     # render drew a playback of 0 firings
+        data = b""
+    elif kind == "blank":
+        data = b"\n  \n\t\n"
     else:                                     # a JSON document of 9 MB on many lines
         data = b"[\n" + b'"t",\n' * ((9 << 20) // 5) + b'"t"]\n'
     path = tmp_path / "t.jsonl"
@@ -238,6 +246,30 @@ def test_an_empty_output_folder_is_a_coded_usage_error(
     assert result.exit_code == 2 and coded(result.output, "E880"), result.output
     assert sorted(os.listdir(tmp_path)) == sorted([*before, "file"])
     assert (tmp_path / "file").read_text() == "x"
+
+
+@pytest.mark.parametrize("command", ["compile", "render", "ros2"])
+def test_an_output_folder_inside_a_file_is_E880_and_names_the_file(
+        tmp_path: Path, monkeypatch: pytest.MonkeyPatch, command: str) -> None:
+    """`-o afile/sub`: the folder cannot be made because `afile` is a file; the message says
+    so (it said "File exists" and named no file)."""
+    monkeypatch.chdir(tmp_path)
+    (tmp_path / "afile").write_text("x")
+    result = invoke(command, FINISHES, "-o", "afile/sub")
+    assert result.exit_code == 2 and coded(result.output, "E880"), result.output
+    assert "'afile'" in result.output, result.output
+    assert sorted(os.listdir(tmp_path)) == ["afile"]
+    assert (tmp_path / "afile").read_text() == "x"
+
+
+@pytest.mark.skipif(not Path("/proc/self").exists(), reason="needs /proc (Linux)")
+@pytest.mark.parametrize("command", ["compile", "render", "ros2"])
+def test_an_output_folder_the_file_system_refuses_is_E881_naming_it(command: str) -> None:
+    """`-o /proc/out`: no folder can be made there; the message names /proc/out (it named
+    the hidden staging folder that rssmc tried to make beside it)."""
+    result = invoke(command, FINISHES, "-o", "/proc/rssmc-out")
+    assert result.exit_code == 2 and coded(result.output, "E881"), result.output
+    assert "'/proc/rssmc-out'" in result.output and ".rssmc-" not in result.output
 
 
 # ---------------------------------------------------------------- 5. a finished run replays

@@ -151,7 +151,7 @@ def test_an_output_folder_the_file_system_refuses_is_no_internal_error(tmp_path:
     r = rssmc("compile", "ok.rssm", "-o", "o" * 300, cwd=tmp_path)
     assert r.returncode == 2, r.stderr
     assert "E900" not in r.stderr and "Traceback" not in r.stderr
-    assert "rssmc: error: File name too long" in r.stderr
+    assert "rssmc: error[E881]: File name too long" in r.stderr
     assert sorted(p.name for p in tmp_path.iterdir()) == ["ok.rssm"]
 
 
@@ -464,3 +464,22 @@ def test_a_megabyte_single_line_file_prints_a_bounded_report(tmp_path: Path) -> 
     assert_clean_failure(r, "E101")
     assert len(r.stderr) < 1_000_000 and len(r.stderr) < 30_000
     assert r.stderr.rstrip().endswith("mega.rssm: 90000 errors, 0 warnings")
+
+
+# ================================================================ frequencies
+
+@pytest.mark.parametrize(("hertz", "ok"), [("100 kHz", True), ("100000 Hz", True),
+                                           ("100001 Hz", False), ("1e9 Hz", False),
+                                           ("1e300 Hz", False), ("0 Hz", False),
+                                           ("0.001 Hz", True)])
+def test_a_frequency_is_positive_and_at_most_100_kHz(tmp_path: Path, hertz: str,
+                                                      ok: bool) -> None:
+    """A subsystem at 1 GHz was accepted, and a second of simulation was 10^9 iterations:
+    E209 at the frequency, the spec refused."""
+    text = spec().replace("@ 10 Hz", f"@ {hertz}")
+    comp = compile_text(tmp_path, text)
+    errors = [d for d in comp.diagnostics if d.is_error]
+    if ok:
+        assert not errors, errors
+    else:
+        assert [d.code for d in errors] == ["E209"] and errors[0].span.line == 3, errors
