@@ -79,7 +79,16 @@ def _agree(net: FlatNet, must_complete: bool = True) -> None:
         assert set(mine.unreachable_behaviours or ()) == lost
 
 
-@pytest.mark.parametrize("path", EXAMPLES, ids=lambda p: p.name)
+# the fleet example (a coordinator and eight robots): its full exploration, the reference
+# here, does not end within its 120 s, so the case ended skipped after 145 s of the suite. The
+# compositional check of the fleet itself runs in `rssmc verify` (the fleets of
+# tests/verify/test_acceptance_specs.py); the other examples are this test's cases.
+LONG_EXAMPLES = {"fleet"}
+
+
+@pytest.mark.parametrize("path", [pytest.param(p, marks=pytest.mark.long)
+                                  if p.stem in LONG_EXAMPLES else p for p in EXAMPLES],
+                         ids=lambda p: p.name)
 def test_examples_agree_with_full_exploration(path: Path) -> None:
     _agree(_net(path))
 
