@@ -22,7 +22,7 @@ from typer.core import TyperCommand
 
 from rssm_dsl import __version__
 from rssm_dsl.commands import COMMANDS, MODULE_OF
-from rssm_dsl.commands.common import EXIT_INTERRUPTED, exit_now
+from rssm_dsl.commands.common import BAD_OPTION_VALUE, EXIT_INTERRUPTED, exit_now
 
 
 def _version(value: bool) -> None:
@@ -78,7 +78,6 @@ def make_app(argv: list[str] | None = None) -> typer.Typer:
 # and at most the sane bound below (an option where a negative number means something must
 # say so here).
 
-BAD_OPTION_VALUE = "E890"
 SECONDS_MAX = 1e9           # 31 years; in nanoseconds still within a 64-bit integer
 COUNT_MAX = 10**12
 SEED_MAX = 2**63 - 1

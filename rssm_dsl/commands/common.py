@@ -79,6 +79,18 @@ def output_folder(given: str | None, default: Path) -> Path | None:
     return None
 
 
+BAD_OPTION_VALUE = "E890"    # an option's value the command does not take (also rssm_dsl/cli.py)
+
+
+def usage_error(message: str, help: str) -> int:
+    """Print a usage error of an option's value (E890: nothing is run or written) with what
+    to do, and return the exit code of a usage error. The texts may quote what the user gave:
+    they are bounded and their control characters escaped."""
+    typer.echo(f"rssmc: error[{BAD_OPTION_VALUE}]: {_shown(message)}", err=True)
+    typer.echo(f"  help: {_shown(help)}", err=True)
+    return EXIT_USAGE
+
+
 def _shown(text: str) -> str:
     from rssm_dsl.diagnostics.diagnostic import bound_text
 

@@ -7,7 +7,7 @@ from typing import Annotated
 
 import typer
 
-from rssm_dsl.commands.common import EXIT_ERRORS, EXIT_OK, EXIT_USAGE, guarded
+from rssm_dsl.commands.common import EXIT_ERRORS, EXIT_OK, EXIT_USAGE, guarded, usage_error
 
 
 def plot(
@@ -34,8 +34,8 @@ def plot(
         from rssm_dsl.run.series_plot import PlotError, draw
 
         if output.suffix.lower() not in (".png", ".svg"):
-            typer.echo(f"rssmc: -o {output}: the figure is written as .png or .svg", err=True)
-            return EXIT_USAGE
+            return usage_error(f"-o {output}: the figure is written as .png "
+                               "or .svg", "name the file NAME.png or NAME.svg")
 
         try:
             system, series = read_series(file)
@@ -46,9 +46,10 @@ def plot(
             chosen, unmatched = select_series(series, select)
             if unmatched:
                 names = ", ".join(s.name for s in series[:12])
-                typer.echo(f"rssmc: --select {unmatched[0]} names no series of {file} (it "
-                           f"has: {names}{', ...' if len(series) > 12 else ''})", err=True)
-                return EXIT_USAGE
+                return usage_error(
+                    f"--select {unmatched[0]} names no series of "
+                    f"{file}",
+                    f"its series: {names}{', ...' if len(series) > 12 else ''}")
             series = chosen
         try:
             draw(system, series, output)

@@ -19,6 +19,7 @@ from rssm_dsl.commands.common import (
     guarded,
     output_folder,
     report,
+    usage_error,
 )
 from rssm_dsl.render import MAX_STEPS, MAX_STEPS_LIMIT
 
@@ -83,8 +84,7 @@ def render_cmd(
 
         usage = _usage(trace, series, select, from_step, from_time)
         if usage is not None:
-            typer.echo(f"rssmc: {usage}", err=True)
-            return EXIT_USAGE
+            return usage_error(usage, "'rssmc render --help' lists the options")
         target = output_folder(output, Path("out") / file.stem / "render")
         if target is None:
             return EXIT_USAGE
@@ -100,8 +100,7 @@ def render_cmd(
         try:
             playback = _playback(trace, net, bag, window) if trace is not None else None
         except WindowError as e:
-            typer.echo(f"rssmc: {e}", err=True)
-            return EXIT_USAGE
+            return usage_error(str(e), "give --from-step or --from-time within the trace")
         panel = load_series(series, hpn.system, bag, select) if series is not None else None
         if bag.has_errors:
             report(replace(comp, diagnostics=comp.diagnostics + tuple(bag.sorted())), format)

@@ -20,6 +20,7 @@ from rssm_dsl.commands.common import (
     guarded,
     output_folder,
     report,
+    usage_error,
 )
 
 MAINTAINER = re.compile(r"\s*([^<>]+?)\s*<([^<>\s]+@[^<>\s]+)>\s*\Z")
@@ -53,9 +54,9 @@ def ros2(
             return EXIT_USAGE
         m = MAINTAINER.match(maintainer)
         if m is None or not license.strip() or any(c in license for c in "<>&\n"):
-            typer.echo("rssmc: --maintainer must be 'Name <email>' and --license a plain "
-                       "license name", err=True)
-            return EXIT_USAGE
+            return usage_error("--maintainer must be 'Name <email>' and --license a plain "
+                               "license name", "for example --maintainer 'Ada Lovelace "
+                               "<ada@example.org>' --license Apache-2.0")
         comp = compile_file(file)
         if not comp.ok or comp.system is None:
             report(comp, format, quiet)

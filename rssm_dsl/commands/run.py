@@ -17,6 +17,7 @@ from rssm_dsl.commands.common import (
     Format,
     guarded,
     report,
+    usage_error,
 )
 
 if TYPE_CHECKING:
@@ -74,13 +75,11 @@ def run_cmd(
 
     def run() -> int:
         if damping is not None and damping not in DAMPING:
-            typer.echo(f"rssmc: --damping must be {' or '.join(DAMPING)}, not {damping}",
-                       err=True)
-            return EXIT_USAGE
+            return usage_error(f"--damping must be {' or '.join(DAMPING)}, not "
+                               f"{damping}", "leave it out for the paper's damping")
         if video is not None and video.suffix.lower() != ".mp4":
-            typer.echo(f"rssmc: --video writes an MP4 file: {video} does not end in .mp4",
-                       err=True)
-            return EXIT_USAGE
+            return usage_error(f"--video writes an MP4 file: {video} does not "
+                               "end in .mp4", "name the file NAME.mp4")
         return _run(file, output, until, switches, damping, viewer, video, trace, seed,
                     format, quiet)
 

@@ -21,6 +21,7 @@ from rssm_dsl.commands.common import (
     guarded,
     output_file_problem,
     report,
+    usage_error,
 )
 from rssm_dsl.interp.watchdog import STALL_PERIODS
 
@@ -159,14 +160,14 @@ def simulate(
 
     def run() -> int:
         if mode not in ("deterministic", "concurrent"):
-            typer.echo(f"rssmc: --mode must be deterministic or concurrent, not {mode}", err=True)
-            return EXIT_USAGE
+            return usage_error(f"--mode must be deterministic or concurrent, not "
+                               f"{mode}", "leave it out for deterministic")
         try:
             devices = _pairs(device or [], "ID=module:Class", "=")
             options = _device_options(device_option or [])
         except typer.BadParameter as e:
-            typer.echo(f"rssmc: {e.message}", err=True)
-            return EXIT_USAGE
+            return usage_error(e.message, "'rssmc simulate --help' shows the form of "
+                               "--device and --device-option")
         if plot is not None:
             from rssm_dsl.extras import missing_message
 
@@ -175,9 +176,8 @@ def simulate(
                 typer.echo(absent, err=True)
                 return EXIT_USAGE
             if plot.suffix.lower() not in (".png", ".svg"):
-                typer.echo(f"rssmc: --plot {plot}: the figure is written as .png or .svg",
-                           err=True)
-                return EXIT_USAGE
+                return usage_error(f"--plot {plot}: the figure is written "
+                                   "as .png or .svg", "name the file NAME.png or NAME.svg")
         if stall_periods == 1:
             # the slowest paced subsystem completes each iteration at its next tick, when the
             # watch looks too: one period cannot tell a stall from its rhythm
@@ -398,8 +398,8 @@ def _load_replay(comp: Compilation, rt: Runtime, replay: Path, mode: str, fmt: F
         _show(comp, bad, fmt)
         return EXIT_USAGE
     if mode != "deterministic":
-        typer.echo("rssmc: --replay runs in deterministic mode", err=True)
-        return EXIT_USAGE
+        return usage_error("--replay runs in deterministic mode",
+                           "leave --mode out (or give --mode deterministic) with --replay")
     if cx.kind != "property":
         return cx, forced, None
     assert comp.system is not None

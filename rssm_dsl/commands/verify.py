@@ -35,6 +35,7 @@ from typing import TYPE_CHECKING, Annotated, Any
 import typer
 
 from rssm_dsl.commands.common import (
+    BAD_OPTION_VALUE,
     EXIT_INTERRUPTED,
     EXIT_USAGE,
     FileArg,
@@ -42,6 +43,7 @@ from rssm_dsl.commands.common import (
     guarded,
     one_shot,
     report,
+    usage_error,
 )
 
 if TYPE_CHECKING:
@@ -51,7 +53,6 @@ if TYPE_CHECKING:
 
 EXIT_BAD_INPUT = EXIT_USAGE         # a usage error or a specification that does not compile
 EXIT_INCONCLUSIVE = 3               # = rssm_dsl.verify.report.EXIT_INCONCLUSIVE
-BAD_OPTION_VALUE = "E890"           # = rssm_dsl.cli.BAD_OPTION_VALUE: a bad option's value
 
 
 def verify_cmd(
@@ -137,12 +138,13 @@ def verify_cmd(
         one_shot(collector=True)
 
         if reduction not in ("auto", "on", "off", "compositional"):
-            typer.echo(f"rssmc: --reduction must be auto, on, off or compositional, not "
-                       f"{reduction!r}", err=True)
-            return EXIT_BAD_INPUT
+            return usage_error(f"--reduction must be auto, on, off or compositional, not "
+                               f"{reduction!r}", "leave it out for auto (docs/verify.md, "
+                               "\"How: --reduction\")")
         if fairness not in ("strong", "weak"):
-            typer.echo(f"rssmc: --fairness must be strong or weak, not {fairness!r}", err=True)
-            return EXIT_BAD_INPUT
+            return usage_error(f"--fairness must be strong or weak, not "
+                               f"{fairness!r}",
+                               "leave it out for strong fairness (docs/verify.md)")
         if math.isnan(timeout):     # rssm_dsl.cli reads the options: only when called directly
             typer.echo(f"rssmc: error[{BAD_OPTION_VALUE}]: --timeout nan: give a number of "
                        "seconds (at least 0.1), or inf for no time limit", err=True)

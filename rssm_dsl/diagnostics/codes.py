@@ -163,7 +163,8 @@ CODES: tuple[Code, ...] = (
          "the file system refuses"),
     # the command line
     Code("E890", "bad-option-value", _E,
-         "a numeric option's value is not a number the command accepts"),
+         "an option's value is not one the command accepts (a number out of range, a word "
+         "it does not know, a file name of the wrong kind)"),
     # internal
     Code("E900", "internal-error", _E, "the compiler failed: please report it"),
 )

@@ -143,3 +143,41 @@ def test_verify_timeout_inf_is_still_no_time_limit() -> None:
     result = invoke(["verify", str(SPEC), "--timeout", "inf", "--format", "json"])
     assert result.exit_code != 2, result.stderr
     assert '"time_seconds": null' in result.stdout
+
+
+# ---------------------------------------------------------- values that are words or file names
+
+WORD_CASES = [
+    ("simulate", [str(SPEC), "--mode", "fast\x1b[2J"]),
+    ("simulate", [str(SPEC), "--device", "nothing-to-bind"]),
+    ("simulate", [str(SPEC), "--device-option", "x"]),
+    ("simulate", [str(SPEC), "--plot", "OUT/fig.jpg"]),
+    ("simulate", [str(SPEC), "--replay", "TRACE", "--mode", "concurrent"]),
+    ("verify", [str(SPEC), "--reduction", "maybe"]),
+    ("verify", [str(SPEC), "--fairness", "fair"]),
+    ("ros2", [str(SPEC), "-o", "OUT/ws", "--maintainer", "nobody"]),
+    ("render", [str(SPEC), "-o", "OUT/r", "--from-step", "3"]),
+    ("run", [str(LWR4), "-o", "OUT/run", "--damping", "soft"]),
+    ("run", [str(LWR4), "-o", "OUT/run", "--video", "OUT/v.avi"]),
+]
+
+
+@pytest.mark.parametrize(("command", "args"), WORD_CASES,
+                         ids=[f"{c}-{a[1]}" for c, a in WORD_CASES])
+def test_a_word_or_file_name_an_option_does_not_take_is_E890(
+        command: str, args: list[str], tmp_path: Path) -> None:
+    """An option's value that is no number but still not one the command takes: E890 with
+    what to do, exit 2, nothing written (these said `rssmc: <message>` with no code)."""
+    out = tmp_path / "out"
+    trace = tmp_path / "t.jsonl"
+    if "TRACE" in args:
+        made = invoke(["simulate", str(SPEC), "--steps", "20", "-q", "--trace", str(trace)])
+        assert made.exit_code == 0, made.stderr
+    args = [a.replace("OUT", str(out)).replace("TRACE", str(trace)) for a in args]
+    result = invoke([command, *args])
+    assert result.exit_code == 2, result.stdout + result.stderr
+    lines = result.stderr.splitlines()
+    assert lines[0].startswith("rssmc: error[E890]: "), result.stderr
+    assert lines[1].startswith("  help: "), result.stderr
+    assert "\x1b" not in result.stderr
+    assert not out.exists() or not any(out.rglob("*")), "a rejected command wrote something"
