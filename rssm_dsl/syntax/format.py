@@ -9,6 +9,12 @@ tokens again with canonical layout:
   more spaces, or aligned after its open bracket when the bracket is followed by text;
 - a line break after a block's `{`, before and after its `}`, after a case label's `:` and
   before every declaration or statement; other line breaks are the writer's;
+- except a block written on one line (`enum Cmd { stay, job, charge }`, `update goal
+  { goal := x }`, `record Pose { position: Vec3, yaw: float }`, `behaviour b { terminal
+  never when false }`): it stays on one line when it holds one declaration, one statement or
+  one member list, no comment and no other block, and the line then fits in LINE_LENGTH
+  columns (its trailing `//` comment not counted); otherwise it is laid out as above. A block
+  written on several lines stays on several lines, so formatting twice changes nothing;
 - at most one blank line in a row, none at the start or end of a block or file;
 - canonical spacing between tokens (`a := f(x, y)`, `e.lwr`, `-x`, `float[3]`, `{a: 1}`);
 - every comment kept, in place; a block comment is copied verbatim; the `//` comments that
@@ -20,7 +26,7 @@ without errors, so formatting never changes the meaning (or the IR) of a specifi
 
 from __future__ import annotations
 
-from dataclasses import field
+from dataclasses import field, replace
 from functools import cache
 
 from lark import Token
@@ -33,6 +39,7 @@ from rssm_dsl.syntax.parser import _lark, parse
 
 INDENT = "  "
 CONTINUATION = "    "
+LINE_LENGTH = 100      # columns a one-line block may reach (what a diagnostic shows of a line)
 
 _COMMENTS = frozenset({"COMMENT", "BLOCK_COMMENT"})
 # Keywords that start a declaration or a statement: a line break goes before them.
@@ -89,6 +96,33 @@ class _Bracket:
     close: str
     line_indent: int           # indentation (columns) of the line where it opened
     align: int | None          # column to align continuation lines to, if any
+
+
+@dataclass
+class _OneLine:
+    """A block being printed on one line, as it was written: `{` at `start`, `}` at `end`."""
+    start: int
+    end: int
+    first: int                 # the first token after `{` (`end` when the block is empty)
+
+
+@dataclass
+class _Saved:
+    """The state before a one-line block's `{`, to print the block again if it does not fit."""
+    index: int
+    newlines: int
+    unary_prev: bool
+    lines: int
+    trailing: dict[int, str]
+    cur: list[str]
+    col: int
+    line_indent: int
+    comment: str | None
+    blocks: list[_Block]
+    prev: Token | None
+    prev_sig: Token | None
+    prev_kind: str
+    decl_kw: str | None
 
 
 @dataclass
@@ -161,6 +195,11 @@ class _Formatter:
         self.prev_kind = ""                   # "block{", "block}", "label:", "lit{", ...
         self.decl_kw: str | None = None       # the keyword that started the declaration
         self.pending_align: _Bracket | None = None  # opened by the previous token
+        self.index = 0                        # of the token being printed
+        self.one_line: _OneLine | None = None  # the block being printed on one line
+        self.saved: _Saved | None = None      # the state before its `{`
+        self.relayout = False                 # it cannot stay on one line: print it again
+        self.expanded: set[int] = set()       # `{`s (by index) of blocks laid out on lines
 
     # ------------------------------------------------------------ classification
     def _expr_end(self, tok: Token | None, kind: str) -> bool:
@@ -245,13 +284,87 @@ class _Formatter:
     def run(self) -> str:
         newlines = 0
         unary_prev = False
-        for tok in self.tokens:
+        i = 0
+        while i < len(self.tokens):
+            tok = self.tokens[i]
             if tok.type == "WS":
                 newlines += str(tok).count("\n")
+                i += 1
                 continue
+            if (self.one_line is None and str(tok) == "{" and i not in self.expanded
+                    and self._block_brace()):
+                self._start_one_line(i, newlines, unary_prev)
+            self.index = i
             unary_prev = self._emit(tok, newlines, unary_prev)
             newlines = 0
+            if self.one_line is not None:
+                if self.relayout or self.p.col > LINE_LENGTH:
+                    i, newlines, unary_prev = self._restore()
+                    continue
+                if i == self.one_line.end:
+                    self.one_line = self.saved = None
+            i += 1
         return self.p.text()
+
+    # ------------------------------------------------------------ one-line blocks
+    def _one_line_end(self, start: int) -> int | None:
+        """The index of the `}` closing the block opened at `start`, if the block is written
+        on one line without comments; None otherwise."""
+        depth = 0
+        for j in range(start + 1, len(self.tokens)):
+            tok = self.tokens[j]
+            value = str(tok)
+            if tok.type in _COMMENTS or (tok.type == "WS" and "\n" in value):
+                return None
+            if value == "{":
+                depth += 1
+            elif value == "}":
+                if depth == 0:
+                    return j
+                depth -= 1
+        return None
+
+    def _start_one_line(self, start: int, newlines: int, unary_prev: bool) -> None:
+        end = self._one_line_end(start)
+        if end is None:
+            return
+        first = next(j for j in range(start + 1, end + 1) if self.tokens[j].type != "WS")
+        self.one_line = _OneLine(start, end, first)
+        p = self.p
+        self.saved = _Saved(
+            start, newlines, unary_prev, len(p.lines), dict(p.trailing), list(p.cur), p.col,
+            p.line_indent, p.comment, [replace(b) for b in self.blocks], self.prev,
+            self.prev_sig, self.prev_kind, self.decl_kw)
+
+    def _restore(self) -> tuple[int, int, bool]:
+        """Back to the block's `{`, to lay the block out on lines."""
+        s = self.saved
+        assert s is not None
+        p = self.p
+        del p.lines[s.lines:]
+        p.trailing, p.cur, p.col, p.line_indent, p.comment = (
+            s.trailing, s.cur, s.col, s.line_indent, s.comment)
+        self.blocks, self.brackets, self.pending_align = s.blocks, [], None
+        self.prev, self.prev_sig, self.prev_kind, self.decl_kw = (
+            s.prev, s.prev_sig, s.prev_kind, s.decl_kw)
+        self.expanded.add(s.index)
+        self.one_line = self.saved = None
+        self.relayout = False
+        return s.index, s.newlines, s.unary_prev
+
+    def _keep_on_line(self, tok: Token) -> bool:
+        """Inside a one-line block, a line break the layout would force is dropped: the one
+        after `{`, the one before `}`, those before a record's fields. Any other (a second
+        statement, a case label, a nested block) means the block is laid out on lines."""
+        block = self.one_line
+        if block is None or not block.start < self.index <= block.end:
+            return False
+        if self.index in (block.first, block.end) or (
+                tok.type == "NAME" and bool(self.blocks) and self.blocks[-1].opener == "record"
+                and str(self.prev_sig) == ","):
+            return True
+        self.relayout = True
+        return True
 
     def _emit(self, tok: Token, newlines: int, unary_prev: bool) -> bool:
         value = str(tok)
@@ -265,6 +378,8 @@ class _Formatter:
             else:
                 forced = (self.prev_kind in ("block{", "block}", "label:") or closing_block
                           or self._decl_start(tok))
+            if forced and self._keep_on_line(tok):
+                forced = False
         if self.prev is not None and (forced or newlines > 0):
             statement = forced or self.prev_kind in ("block{", "block}", "label:") or (
                 bool(self.blocks) and self.blocks[-1].opener == "enum" and not self.brackets)

@@ -124,9 +124,7 @@ system s {
           o := f(p,
                  m) + -p * K
         }
-        update memory {
-          m.a := if p > 0 then -p else p
-        }
+        update memory { m.a := if p > 0 then -p else p }
         terminal t when m.a >= 2.0 /* inline */
         send o
       }

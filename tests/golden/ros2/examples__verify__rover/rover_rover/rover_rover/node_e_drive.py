@@ -75,7 +75,7 @@ def f_1_1_1(st: State, stage: dict[str, Any]) -> None:
     v_dy = (_rt.index(v_drive_cmd['target'], 1, 2, True, 'examples/verify/rover.rssm:176:20') - v_odometry['y'])
     v_err = (math.atan2(v_dy, v_dx) - v_odometry['heading'])
     v_turn = _rt.fclamp((2.0 * math.atan2(_rt.math1(math.sin, 'sin', v_err, 'examples/verify/rover.rssm:178:40'), _rt.math1(math.cos, 'cos', v_err, 'examples/verify/rover.rssm:178:50'))), (-v_max_turn), v_max_turn)
-    v_v = (_rt.fmin(v_drive_cmd['max_speed'], _rt.div(_rt.norm(_rt.float_array((v_dx, v_dy))), v_dt, 'examples/verify/rover.rssm:180:49')) if (abs(math.atan2(_rt.math1(math.sin, 'sin', v_err, 'examples/verify/rover.rssm:179:32'), _rt.math1(math.cos, 'cos', v_err, 'examples/verify/rover.rssm:179:42'))) < 0.3) else 0.0)
+    v_v = (_rt.fmin(v_drive_cmd['max_speed'], _rt.div(_rt.norm(_rt.float_array((v_dx, v_dy))), v_dt, 'examples/verify/rover.rssm:180:45')) if (abs(math.atan2(_rt.math1(math.sin, 'sin', v_err, 'examples/verify/rover.rssm:179:32'), _rt.math1(math.cos, 'cos', v_err, 'examples/verify/rover.rssm:179:42'))) < 0.3) else 0.0)
     v_track = {'x': (v_odometry['x'] + ((v_v * v_dt) * _rt.math1(math.cos, 'cos', v_odometry['heading'], 'examples/verify/rover.rssm:181:46'))), 'y': (v_odometry['y'] + ((v_v * v_dt) * _rt.math1(math.sin, 'sin', v_odometry['heading'], 'examples/verify/rover.rssm:182:46'))), 'heading': (v_odometry['heading'] + (v_turn * v_dt))}
     stage['v_track'] = v_track
 

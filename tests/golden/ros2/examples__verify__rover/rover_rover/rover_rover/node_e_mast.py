@@ -86,7 +86,7 @@ def f_1_2_1(st: State, stage: dict[str, Any]) -> None:
     v_joints = st.v_joints
     v_mast_cmd = st.v_mast_cmd
     v_tol = st.v_tol
-    v_mast = {'deployed': (abs((_rt.index(v_joints, 0, 3, True, 'examples/verify/rover.rssm:215:34') - v_deploy_angle)) < v_tol), 'stowed': ((abs(_rt.index(v_joints, 0, 3, True, 'examples/verify/rover.rssm:216:32')) < v_tol) and (abs(_rt.index(v_joints, 2, 3, True, 'examples/verify/rover.rssm:216:57')) < v_tol)), 'aligned': ((abs((_rt.index(v_joints, 1, 3, True, 'examples/verify/rover.rssm:217:33') - v_mast_cmd['pan'])) < v_tol) and (abs((_rt.index(v_joints, 2, 3, True, 'examples/verify/rover.rssm:218:37') - v_mast_cmd['tilt'])) < v_tol))}
+    v_mast = {'deployed': (abs((_rt.index(v_joints, 0, 3, True, 'examples/verify/rover.rssm:215:34') - v_deploy_angle)) < v_tol), 'stowed': ((abs(_rt.index(v_joints, 0, 3, True, 'examples/verify/rover.rssm:216:32')) < v_tol) and (abs(_rt.index(v_joints, 2, 3, True, 'examples/verify/rover.rssm:216:57')) < v_tol)), 'aligned': ((abs((_rt.index(v_joints, 1, 3, True, 'examples/verify/rover.rssm:217:33') - v_mast_cmd['pan'])) < v_tol) and (abs((_rt.index(v_joints, 2, 3, True, 'examples/verify/rover.rssm:218:28') - v_mast_cmd['tilt'])) < v_tol))}
     stage['v_mast'] = v_mast
 
 
