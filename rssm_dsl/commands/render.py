@@ -28,6 +28,8 @@ if TYPE_CHECKING:
     from rssm_dsl.hpn.flat import FlatNet
     from rssm_dsl.render.playback import Playback, Window
     from rssm_dsl.render.series import SeriesPanel
+    from rssm_dsl.render.svg import PageProblem
+    from rssm_dsl.source import Span
 
 
 def render_cmd(
@@ -80,7 +82,7 @@ def render_cmd(
         from rssm_dsl.render.names import figure_files
         from rssm_dsl.render.playback import Window, WindowError
         from rssm_dsl.render.series import load_series
-        from rssm_dsl.render.svg import GraphvizError, find_dot, render_svgs
+        from rssm_dsl.render.svg import draw_figures, find_dot
 
         usage = _usage(trace, series, select, from_step, from_time)
         if usage is not None:
@@ -120,14 +122,18 @@ def render_cmd(
                 want_html = True
             else:
                 names = figure_files(hpn)
-                try:
-                    files.update(render_svgs(hpn, names, dot))
-                    figures = names
-                except GraphvizError as e:
-                    missing = f"Graphviz failed on page {e.page}"
-                    bag.error("E851", f"Graphviz `dot` failed on page {e.page}: {e.message}",
-                              at, "the HTML explorer was written instead")
+                drawn, problems = draw_figures(hpn, names, dot)
+                if problems and all(not p.drawn for p in problems) and len(problems) == len(names):
+                    first = problems[0]
+                    missing = f"Graphviz failed on page {first.page}"
+                    bag.error("E851", f"Graphviz `dot` failed on every page, first on "
+                              f"{first.page}: {first.message}", at,
+                              "the HTML explorer was written instead")
                     want_html = True
+                else:
+                    files.update(drawn)
+                    figures = names
+                    want_html = _page_problems(problems, bag, at) or want_html
         explorer = file_name(hpn.system, ".html") if want_html else None
         spec = str(file)
         if explorer is not None:
@@ -145,6 +151,29 @@ def render_cmd(
         return EXIT_ERRORS if bag.has_errors else EXIT_OK
 
     guarded(run)
+
+
+PAGE_PROBLEMS_SHOWN = 10      # W849 per page up to this many, then one for the rest
+
+
+def _page_problems(problems: list[PageProblem], bag: DiagnosticBag, at: Span) -> bool:
+    """W849 for the pages whose first layout failed (bounded); True when a page was not
+    drawn at all, so the explorer is written to show it."""
+    for p in problems[:PAGE_PROBLEMS_SHOWN]:
+        if p.drawn:
+            bag.warn("W849", f"page {p.page} was drawn with the quick layout (straight edges): "
+                     f"{p.message}", at, "the figure is complete, only less tidy; a smaller "
+                     "page (fewer buffers or behaviours in one subsystem) lays out faster")
+        else:
+            bag.warn("W849", f"page {p.page} was not drawn: {p.message}", at,
+                     "its figure says so; the HTML explorer, written beside it, shows the page")
+    rest = problems[PAGE_PROBLEMS_SHOWN:]
+    if rest:
+        undrawn = sum(not p.drawn for p in rest)
+        bag.warn("W849", f"{len(rest)} more pages were drawn with the quick layout or not at all "
+                 f"({undrawn} not drawn), first {rest[0].page}", at,
+                 "the HTML explorer shows every page")
+    return any(not p.drawn for p in problems)
 
 
 def _playback(trace: Path, net: FlatNet, bag: DiagnosticBag, window: Window) -> Playback | None:

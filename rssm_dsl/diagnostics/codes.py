@@ -131,8 +131,10 @@ CODES: tuple[Code, ...] = (
     Code("E809", "subsystem-stalled", _E,
          "a subsystem completes no iteration while the rest of the system runs on"),
     # render (rssmc render)
+    Code("W849", "page-layout-failed", _W,
+         "Graphviz could not lay out a page in time: drawn with a quick layout, or not drawn"),
     Code("W850", "graphviz-missing", _W, "Graphviz `dot` is not installed: no SVG figures drawn"),
-    Code("E851", "graphviz-failed", _E, "Graphviz `dot` failed to draw a page"),
+    Code("E851", "graphviz-failed", _E, "Graphviz `dot` failed on every page"),
     Code("E852", "trace-unreadable", _E, "a trace or counterexample file that cannot be read"),
     Code("E853", "trace-unknown-transition", _E, "a trace fires a transition the net lacks"),
     Code("E854", "trace-not-enabled", _E, "a trace fires a transition that is not enabled"),

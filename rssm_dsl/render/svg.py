@@ -4,12 +4,20 @@ fused), pages as double circles that link to their own figure.
 
 The node drawing is shared with the per-layer DOT export (rssm_dsl/emit/dot.py); here each
 page becomes a graph of its own, and nodes get an SVG class, a tooltip (operation or
-condition, fusion set, file:line) and, for pages, a link to the sub-page's figure."""
+condition, fusion set, file:line) and, for pages, a link to the sub-page's figure.
+
+The pages are laid out in parallel (one `dot` process per core). A page that `dot` cannot lay
+out within DOT_TIMEOUT_S (or at all) is laid out again with a quick layout (straight edges,
+crossing minimisation and network simplex cut short); if that fails too, its figure is a
+placeholder that says why: one hard page never fails the command (``draw_figures``)."""
 
 from __future__ import annotations
 
+import html
+import os
 import shutil
 import subprocess
+from concurrent.futures import ThreadPoolExecutor
 
 from rssm_core.records import dataclass
 from rssm_dsl.emit.dot import page_attrs, place_attrs, quote, transition_attrs
@@ -17,7 +25,11 @@ from rssm_dsl.emit.order import pages_in_order
 from rssm_dsl.hpn.ir import HPN, Page
 from rssm_dsl.source import Span
 
-DOT_TIMEOUT_S = 60.0
+DOT_TIMEOUT_S = 60.0        # the first layout of a page
+QUICK_TIMEOUT_S = 60.0      # the quick layout, when the first failed
+# straight edges; crossing minimisation and the network simplex cut short (Graphviz attrs)
+QUICK_LAYOUT = ("-Gsplines=line", "-Gmclimit=0.05", "-Gnslimit=0.2", "-Gnslimit1=0.2",
+                "-Gsearchsize=5", "-Gremincross=false")
 
 
 class GraphvizError(Exception):
@@ -92,13 +104,16 @@ def page_dot(hpn: HPN, page: Page, files: dict[str, str]) -> str:
     return "\n".join(out) + "\n"
 
 
-def run_dot(dot: str, page: str, source: str) -> str:
-    """Lay out and draw one graph with `dot -Tsvg`."""
+def run_dot(dot: str, page: str, source: str, options: tuple[str, ...] = (),
+            timeout: float | None = None) -> str:
+    """Lay out and draw one graph with `dot -Tsvg` (and ``options``), within ``timeout``
+    seconds (DOT_TIMEOUT_S by default)."""
+    limit = DOT_TIMEOUT_S if timeout is None else timeout
     try:
-        done = subprocess.run([dot, "-Tsvg"], input=source, capture_output=True, text=True,
-                              timeout=DOT_TIMEOUT_S, check=False)
+        done = subprocess.run([dot, "-Tsvg", *options], input=source, capture_output=True,
+                              text=True, timeout=limit, check=False)
     except subprocess.TimeoutExpired:
-        raise GraphvizError(page, f"dot took longer than {DOT_TIMEOUT_S:.0f} s") from None
+        raise GraphvizError(page, f"dot took longer than {limit:g} s") from None
     except OSError as e:
         raise GraphvizError(page, f"cannot run {dot}: {e.strerror or e}") from None
     if done.returncode != 0 or "<svg" not in done.stdout:
@@ -124,9 +139,64 @@ def figures(hpn: HPN, files: dict[str, str]) -> list[Figure]:
     return [Figure(p.id, files[p.id], page_dot(hpn, p, files)) for p in pages_in_order(hpn)]
 
 
-def render_svgs(hpn: HPN, files: dict[str, str], dot: str) -> dict[str, str]:
-    """{file name: SVG text} for every page. Raises GraphvizError if `dot` fails."""
+@dataclass(frozen=True, slots=True)
+class PageProblem:
+    """A page whose first layout failed: ``message`` says why; ``drawn``: laid out by the
+    quick layout after all, else its figure is a placeholder."""
+
+    page: str
+    message: str
+    drawn: bool
+
+
+def _placeholder(page: str, why: str) -> str:
+    """A figure that says the page could not be drawn, and why (user text escaped)."""
+    lines = [f"page {page}", "was not drawn: Graphviz could not lay it out", why,
+             "the HTML explorer (rssmc render --html) shows it"]
+    texts = "".join(f'<text x="10" y="{24 + 20 * i}" font-family="sans-serif" '
+                    f'font-size="14">{html.escape(line)}</text>' for i, line in enumerate(lines))
+    return ('<?xml version="1.0" encoding="UTF-8"?>\n'
+            '<svg xmlns="http://www.w3.org/2000/svg" width="640" height="110" '
+            f'class="not-drawn"><title>{html.escape(page)}</title>{texts}</svg>\n')
+
+
+def _draw(dot: str, fig: Figure) -> tuple[str, PageProblem | None]:
+    try:
+        return run_dot(dot, fig.page, fig.dot), None
+    except GraphvizError as first:
+        try:
+            svg = run_dot(dot, fig.page, fig.dot, QUICK_LAYOUT, QUICK_TIMEOUT_S)
+            return svg, PageProblem(fig.page, first.message, drawn=True)
+        except GraphvizError as second:
+            why = first.message if second.message == first.message else \
+                f"{first.message}; the quick layout: {second.message}"
+            return _placeholder(fig.page, why), PageProblem(fig.page, why, drawn=False)
+
+
+def draw_figures(hpn: HPN, files: dict[str, str], dot: str,
+                 jobs: int | None = None) -> tuple[dict[str, str], list[PageProblem]]:
+    """{file name: SVG text} for every page, and the pages whose first layout failed (in
+    page order). The pages are laid out by ``jobs`` `dot` processes at once (one per core by
+    default)."""
+    figs = figures(hpn, files)
+    workers = max(1, min(len(figs), jobs or os.cpu_count() or 1))
+    with ThreadPoolExecutor(max_workers=workers) as pool:
+        drawn = list(pool.map(lambda fig: _draw(dot, fig), figs))
     out: dict[str, str] = {}
-    for fig in figures(hpn, files):
-        out[fig.file] = _stamp(run_dot(dot, fig.page, fig.dot), hpn, hpn.pages[fig.page])
+    problems: list[PageProblem] = []
+    for fig, (svg, problem) in zip(figs, drawn, strict=True):
+        out[fig.file] = svg if problem is not None and not problem.drawn else \
+            _stamp(svg, hpn, hpn.pages[fig.page])
+        if problem is not None:
+            problems.append(problem)
+    return out, problems
+
+
+def render_svgs(hpn: HPN, files: dict[str, str], dot: str) -> dict[str, str]:
+    """{file name: SVG text} for every page. Raises GraphvizError for the first page that
+    could not be drawn at all (``draw_figures`` draws a placeholder instead)."""
+    out, problems = draw_figures(hpn, files, dot)
+    for p in problems:
+        if not p.drawn:
+            raise GraphvizError(p.page, p.message)
     return out

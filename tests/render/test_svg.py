@@ -4,15 +4,23 @@ from __future__ import annotations
 
 import shutil
 import xml.etree.ElementTree as ET
+from collections.abc import Callable
 from pathlib import Path
 
 import pytest
+from typer.testing import CliRunner
 
+from rssm_dsl.cli import make_app
+from rssm_dsl.commands.render import PAGE_PROBLEMS_SHOWN
 from rssm_dsl.emit.dot import emit_dot
 from rssm_dsl.hpn.ir import HPN
+from rssm_dsl.render import svg as svg_module
 from rssm_dsl.render.names import figure_files
-from rssm_dsl.render.svg import GraphvizError, page_dot, render_svgs, run_dot
+from rssm_dsl.render.svg import GraphvizError, draw_figures, page_dot, render_svgs, run_dot
+from tests.conftest import EXAMPLES
 from tests.render.support import lwr4
+
+LWR4 = EXAMPLES / "lwr4_circle.rssm"
 
 NS = {"svg": "http://www.w3.org/2000/svg", "xlink": "http://www.w3.org/1999/xlink"}
 needs_dot = pytest.mark.skipif(shutil.which("dot") is None, reason="Graphviz dot not installed")
@@ -149,3 +157,78 @@ def test_dot_failure_is_reported_with_the_page(tmp_path: Path) -> None:
     assert err.value.page == "P[x]" and err.value.message
     with pytest.raises(GraphvizError):
         run_dot(str(tmp_path / "no-such-dot"), "P[x]", "digraph { a }")
+
+
+# ------------------------------------------------------------------ a page dot cannot lay out
+
+@needs_dot
+def test_pages_drawn_in_parallel_are_the_pages_drawn_one_by_one() -> None:
+    dot = shutil.which("dot")
+    assert dot is not None
+    hpn = _hpn()
+    one, p1 = draw_figures(hpn, figure_files(hpn), dot, jobs=1)
+    four, p4 = draw_figures(hpn, figure_files(hpn), dot, jobs=4)
+    assert one == four and p1 == p4 == []
+
+
+def _slow_on(pages: set[str], quick_too: bool) -> Callable[..., str]:
+    """run_dot, with a first layout that times out on ``pages`` (the real dot, a timeout of
+    0.1 ms), and the quick layout too if ``quick_too``."""
+    real = svg_module.run_dot
+
+    def run(dot: str, page: str, source: str, options: tuple[str, ...] = (),
+            timeout: float | None = None) -> str:
+        if page in pages and (not options or quick_too):
+            timeout = 1e-4
+        return real(dot, page, source, options, timeout)
+
+    return run
+
+
+@needs_dot
+@pytest.mark.parametrize("quick_too", [False, True])
+def test_one_page_dot_cannot_lay_out_does_not_fail_the_command(
+        tmp_path: Path, monkeypatch: pytest.MonkeyPatch, quick_too: bool) -> None:
+    """The page is laid out again with the quick layout (W849, a full figure), or drawn as a
+    placeholder that says why (W849, and the explorer is written to show it); every other
+    page is drawn as usual, and the command succeeds (it failed with E851)."""
+    hpn = _hpn()
+    names = figure_files(hpn)
+    slow = next(p for p in names if p.startswith("P^B"))
+    monkeypatch.setattr(svg_module, "run_dot", _slow_on({slow}, quick_too))
+    out = tmp_path / "out"
+    result = CliRunner().invoke(make_app(), ["render", str(LWR4), "-o", str(out)])
+    assert result.exit_code == 0, result.output
+    warnings = [line for line in result.output.splitlines() if "warning[W849]" in line]
+    assert len(warnings) == 1 and slow in warnings[0], result.output
+    figure = (out / names[slow]).read_text()
+    ET.fromstring(figure)                                   # well-formed either way
+    assert ('class="not-drawn"' in figure) is quick_too
+    assert (out / f"{hpn.system}.html").exists() is quick_too
+    others = [f for p, f in names.items() if p != slow]
+    assert all('class="not-drawn"' not in (out / f).read_text() for f in others)
+
+
+@needs_dot
+def test_a_dot_that_fails_on_every_page_is_E851(tmp_path: Path,
+                                               monkeypatch: pytest.MonkeyPatch) -> None:
+    hpn = _hpn()
+    monkeypatch.setattr(svg_module, "run_dot", _slow_on(set(figure_files(hpn)), True))
+    out = tmp_path / "out"
+    result = CliRunner().invoke(make_app(), ["render", str(LWR4), "-o", str(out)])
+    assert result.exit_code == 1 and "error[E851]" in result.output, result.output
+    assert (out / f"{hpn.system}.html").exists()
+
+
+@needs_dot
+def test_the_warnings_of_many_hard_pages_are_bounded(tmp_path: Path,
+                                                     monkeypatch: pytest.MonkeyPatch) -> None:
+    hpn = _hpn()
+    names = figure_files(hpn)
+    slow = set(list(names)[1:])                    # all but the root: no E851
+    monkeypatch.setattr(svg_module, "run_dot", _slow_on(slow, False))
+    result = CliRunner().invoke(make_app(), ["render", str(LWR4), "-o", str(tmp_path / "o")])
+    assert result.exit_code == 0, result.output
+    warnings = [line for line in result.output.splitlines() if "warning[W849]" in line]
+    assert len(warnings) == PAGE_PROBLEMS_SHOWN + 1 < len(slow), result.output
+    assert f"{len(slow) - PAGE_PROBLEMS_SHOWN} more pages" in warnings[-1]
