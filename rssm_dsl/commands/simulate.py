@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import contextlib
 import json
 import sys
 from fnmatch import fnmatchcase
@@ -95,6 +96,56 @@ class _Live:
             sys.stderr.write(f"\x1b[{self.lines}F\x1b[J")
             sys.stderr.flush()
             self.lines = 0
+
+
+class _Preparing:
+    """The live line before the run: what is being prepared (compiling, building the
+    interpreter) and for how long, shown from FIRST_AFTER seconds on and redrawn in place
+    until the run's own summary (``_Live``) takes over; nothing on a quick start."""
+
+    FIRST_AFTER = 1.0
+    EVERY = 0.5
+
+    def __init__(self) -> None:
+        import threading
+
+        self.phase = "compiling"
+        self.shown = False
+        self._start = 0.0
+        self._lock = threading.Lock()
+        self._done = threading.Event()
+        self._thread = threading.Thread(target=self._tick, name="rssmc-preparing", daemon=True)
+
+    def __enter__(self) -> _Preparing:
+        import time
+
+        self._start = time.monotonic()
+        self._thread.start()
+        return self
+
+    def __exit__(self, *exc: object) -> None:
+        self._done.set()
+        self._thread.join()
+        with self._lock:
+            if self.shown:
+                sys.stderr.write("\r\x1b[K")
+                sys.stderr.flush()
+
+    def _tick(self) -> None:
+        import time
+
+        if self._done.wait(self.FIRST_AFTER):
+            return
+        while True:
+            with self._lock:
+                if self._done.is_set():
+                    return
+                sys.stderr.write(f"\rrssmc simulate: {self.phase} "
+                                 f"({time.monotonic() - self._start:.0f} s)\x1b[K")
+                sys.stderr.flush()
+                self.shown = True
+            if self._done.wait(self.EVERY):
+                return
 
 
 def simulate(
@@ -205,9 +256,12 @@ def _simulate(file: Path, steps: int | None, until: float | None, mode: str, see
     from rssm_dsl.interp import RunConfig, SimOptions, Simulator
     from rssm_dsl.interp.replay import ValueChoices, chain, judge
     from rssm_dsl.interp.trace import TraceWriter
-    from rssm_dsl.pipeline import compile_file
 
-    comp = compile_file(file)
+    show_live = (sys.stderr.isatty() if live is None else live) and not quiet \
+        and fmt is Format.text
+    config = RunConfig(base_dir=file.resolve().parent, devices=devices, device_options=options,
+                       wall_clock=mode == "concurrent")
+    comp, rt = _prepare(file, config, show_live)
     if not comp.ok or comp.system is None:
         report(comp, fmt)
         return EXIT_ERRORS
@@ -217,12 +271,10 @@ def _simulate(file: Path, steps: int | None, until: float | None, mode: str, see
     if unknown is not None:
         typer.echo(unknown, err=True)
         return EXIT_USAGE
-
-    config = RunConfig(base_dir=file.resolve().parent, devices=devices, device_options=options,
-                       wall_clock=mode == "concurrent")
-    rt = _runtime(comp, config, fmt)
-    if rt is None:
+    if isinstance(rt, _SetupFailed):
+        rt.show(comp, fmt)
         return EXIT_ERRORS
+    assert rt is not None
 
     cx, forced, watch = None, None, None
     values: ValueChoices | None = None
@@ -241,8 +293,6 @@ def _simulate(file: Path, steps: int | None, until: float | None, mode: str, see
         return EXIT_USAGE
     tracer = TraceWriter(trace) if trace is not None else None
     rt.tracer = tracer
-    show_live = (sys.stderr.isatty() if live is None else live) and not quiet \
-        and fmt is Format.text
     painter = _Live() if show_live else None
     bounded = steps is not None or until is not None or replay is not None
     if not bounded:
@@ -297,19 +347,39 @@ def _report_run(file: Path, comp: Compilation, result: RunResult, diags: list[Di
     return _exit_code(result, cx, verdict)
 
 
-def _runtime(comp: Compilation, config: RunConfig, fmt: Format) -> Runtime | None:
-    """The run's runtime, or None when it cannot be set up (the problems printed)."""
-    from rssm_dsl.interp import build_runtime
-    from rssm_dsl.interp.errors import SetupError
+class _SetupFailed:
+    """The problems that kept the runtime from being set up, to print after the live line."""
 
-    try:
-        return build_runtime(comp, config)
-    except SetupError as e:
-        _show(comp, e.diagnostics, fmt)
+    def __init__(self, diagnostics: tuple[Diagnostic, ...] | list[Diagnostic]) -> None:
+        self.diagnostics = list(diagnostics)
+
+    def show(self, comp: Compilation, fmt: Format) -> None:
+        _show(comp, self.diagnostics, fmt)
         if fmt is Format.json:
             typer.echo(json.dumps({"reason": "setup", "diagnostics":
-                                   [d.to_json() for d in e.diagnostics]}, indent=2))
-        return None
+                                   [d.to_json() for d in self.diagnostics]}, indent=2))
+
+
+def _prepare(file: Path, config: RunConfig,
+             live: bool) -> tuple[Compilation, Runtime | _SetupFailed | None]:
+    """The compilation and, if it is fit to run, the run's runtime (or the problems that
+    kept it from being set up, to print); with ``live``, the line that says what is being
+    prepared on a slow start (``_Preparing``)."""
+    from rssm_dsl.interp import build_runtime
+    from rssm_dsl.interp.errors import SetupError
+    from rssm_dsl.pipeline import compile_file
+
+    with _Preparing() if live else contextlib.nullcontext() as preparing:
+        comp = compile_file(file)
+        if not comp.ok or comp.system is None or _unknown_device(
+                comp.system, [*config.devices, *config.device_options]) is not None:
+            return comp, None
+        if preparing is not None:
+            preparing.phase = "building the interpreter"
+        try:
+            return comp, build_runtime(comp, config)
+        except SetupError as e:
+            return comp, _SetupFailed(e.diagnostics)
 
 
 class _Record:
