@@ -29,6 +29,8 @@ from rssm_dsl.interp.watchdog import STALL_PERIODS
 DEFAULT_UNTIL = 60.0    # seconds: the bound of a run given none (a system may never end)
 
 if TYPE_CHECKING:
+    from collections.abc import Callable
+
     from rssm_dsl.diagnostics import Diagnostic
     from rssm_dsl.interp import RunConfig
     from rssm_dsl.interp.program import Runtime
@@ -259,9 +261,9 @@ def _simulate(file: Path, steps: int | None, until: float | None, mode: str, see
 
     show_live = (sys.stderr.isatty() if live is None else live) and not quiet \
         and fmt is Format.text
-    config = RunConfig(base_dir=file.resolve().parent, devices=devices, device_options=options,
-                       wall_clock=mode == "concurrent")
-    comp, rt = _prepare(file, config, show_live)
+    comp, rt = _prepare(file, lambda: RunConfig(
+        base_dir=file.resolve().parent, devices=devices, device_options=options,
+        wall_clock=mode == "concurrent"), show_live)
     if not comp.ok or comp.system is None:
         report(comp, fmt)
         return EXIT_ERRORS
@@ -360,17 +362,22 @@ class _SetupFailed:
                                    [d.to_json() for d in self.diagnostics]}, indent=2))
 
 
-def _prepare(file: Path, config: RunConfig,
+def _prepare(file: Path, configure: Callable[[], RunConfig],
              live: bool) -> tuple[Compilation, Runtime | _SetupFailed | None]:
     """The compilation and, if it is fit to run, the run's runtime (or the problems that
     kept it from being set up, to print); with ``live``, the line that says what is being
-    prepared on a slow start (``_Preparing``)."""
+    prepared on a slow start (``_Preparing``). The run's configuration is made only for a
+    spec that compiled (its folder is looked up then: a root spec that is a symbolic link
+    loop is the compiler's E001)."""
     from rssm_dsl.interp import build_runtime
     from rssm_dsl.interp.errors import SetupError
     from rssm_dsl.pipeline import compile_file
 
     with _Preparing() if live else contextlib.nullcontext() as preparing:
         comp = compile_file(file)
+        if not comp.ok or comp.system is None:
+            return comp, None
+        config = configure()
         if not comp.ok or comp.system is None or _unknown_device(
                 comp.system, [*config.devices, *config.device_options]) is not None:
             return comp, None
