@@ -15,7 +15,7 @@ completion, symbols in turn. The baseline, measured in the same run, is one in-p
 `compile_file` of the same text (the work an edit needs without a server); the ratio shows
 what the incremental analysis saves.
 
-    python bench/lsp.py [--agents 75 262] [--edits 60]
+    python bench/lsp.py [--agents 75 262] [--edits 60] [--changes incremental|full|both]
 """
 
 from __future__ import annotations
@@ -155,8 +155,9 @@ def _position(text: str, pattern: str, nth: int) -> dict[str, int]:
     return {"line": line, "character": at - (text.rfind("\n", 0, at) + 1)}
 
 
-def run(agents: int, edits: int) -> dict[str, list[float]]:
-    """Latencies (seconds) by kind, and the baseline, for a spec of `agents` agents."""
+def run(agents: int, edits: int, full: bool = False) -> dict[str, list[float]]:
+    """Latencies (seconds) by kind, and the baseline, for a spec of `agents` agents; with
+    ``full``, each change is sent as the whole text (as some clients do)."""
     text = spec(agents)
     nlines = text.count("\n")
     with tempfile.TemporaryDirectory() as tmp:
@@ -192,11 +193,12 @@ def run(agents: int, edits: int) -> dict[str, list[float]]:
             end_line, end_col = _end(line, col, removed)
             current = _apply(current, line, col, removed, inserted)
             t0 = time.perf_counter()
+            change: dict[str, Any] = {"text": current} if full else {
+                "range": {"start": {"line": line, "character": col},
+                          "end": {"line": end_line, "character": end_col}},
+                "text": inserted}
             server.notify("textDocument/didChange", {
-                "textDocument": {"uri": uri, "version": version},
-                "contentChanges": [{"range": {"start": {"line": line, "character": col},
-                                              "end": {"line": end_line, "character": end_col}},
-                                    "text": inserted}]})
+                "textDocument": {"uri": uri, "version": version}, "contentChanges": [change]})
             server.diagnostics(uri, version)
             times["edit"].append(time.perf_counter() - t0)
             kind = ("hover", "completion", "symbols")[k % 3]
@@ -223,7 +225,8 @@ def run(agents: int, edits: int) -> dict[str, list[float]]:
                 times[f"{kind} (idle)"].append(time.perf_counter() - t0)
         assert current == text
         server.close()
-    print(f"spec: {nlines} lines, {agents} agents; {len(times['edit'])} edits")
+    print(f"spec: {nlines} lines, {agents} agents; {len(times['edit'])} edits, "
+          f"{'the whole text' if full else 'incremental changes'}")
     print(f"  baseline compile_file (in-process, same text): "
           f"{statistics.median(base) * 1000:.0f} ms median")
     print(f"  didOpen -> diagnostics: {opened * 1000:.0f} ms")
@@ -243,9 +246,13 @@ def main() -> None:
     ap = argparse.ArgumentParser()
     ap.add_argument("--agents", type=int, nargs="+", default=[75, 262])
     ap.add_argument("--edits", type=int, default=60)
+    ap.add_argument("--changes", choices=["incremental", "full", "both"], default="both",
+                    help="send each edit as a range (incremental), as the whole text (full, as "
+                         "some clients do), or both in turn")
     args = ap.parse_args()
     for agents in args.agents:
-        run(agents, args.edits)
+        for full in {"incremental": [False], "full": [True], "both": [False, True]}[args.changes]:
+            run(agents, args.edits, full)
 
 
 if __name__ == "__main__":

@@ -30,6 +30,7 @@ import os
 import re
 import sys
 import threading
+import time
 from pathlib import Path
 from typing import Any, BinaryIO
 from urllib.parse import unquote
@@ -221,6 +222,7 @@ class RssmServer(LanguageServer):
                          protocol_cls=RssmProtocol)
         self.analyses: dict[str, Analysis] = {}
         self.timers: dict[str, asyncio.TimerHandle] = {}
+        self.last_change: dict[str, float] = {}   # uri -> when its last change came
         self.jobs: dict[str, Job[Analysis]] = {}     # the running analysis of each document
         self.waiters: dict[str, list[asyncio.Future[None]]] = {}
         self.workspace_cache: dict[Path, tuple[float, SymbolIndex]] = {}
@@ -301,6 +303,20 @@ class RssmServer(LanguageServer):
             timer.cancel()
         loop = asyncio.get_running_loop()
         self.timers[uri] = loop.call_later(delay, self._start, uri)
+
+    def change_delay(self, uri: str) -> float:
+        """The debounce of a change (leading edge): the first change after a pause (no
+        analysis pending or running, no change for DEBOUNCE_SECONDS) is analysed at once;
+        a change within a burst waits DEBOUNCE_SECONDS, so a burst of typing is analysed at
+        its end (each change cancels what the one before started)."""
+        now = time.monotonic()
+        last = self.last_change.get(uri)
+        self.last_change[uri] = now
+        job = self.jobs.get(uri)
+        busy = uri in self.timers or (job is not None and job.running)
+        if busy or (last is not None and now - last < DEBOUNCE_SECONDS):
+            return DEBOUNCE_SECONDS
+        return 0.0
 
     def _start(self, uri: str) -> None:
         """Analyse the document's current text; an analysis of an older text is stopped."""
@@ -656,7 +672,7 @@ def did_open(ls: RssmServer, params: lsp.DidOpenTextDocumentParams) -> None:
 
 @server.feature(lsp.TEXT_DOCUMENT_DID_CHANGE)
 def did_change(ls: RssmServer, params: lsp.DidChangeTextDocumentParams) -> None:
-    ls.schedule(params.text_document.uri, DEBOUNCE_SECONDS)
+    ls.schedule(params.text_document.uri, ls.change_delay(params.text_document.uri))
 
 
 @server.feature(lsp.TEXT_DOCUMENT_DID_SAVE)
@@ -672,6 +688,7 @@ def did_close(ls: RssmServer, params: lsp.DidCloseTextDocumentParams) -> None:
     timer = ls.timers.pop(uri, None)
     if timer is not None:
         timer.cancel()
+    ls.last_change.pop(uri, None)
     ls._stop(uri)
     ls._wake(uri)
     a = ls.analyses.pop(uri, None)
