@@ -32,6 +32,7 @@ if TYPE_CHECKING:
     from collections.abc import Callable
 
     from rssm_dsl.diagnostics import Diagnostic
+    from rssm_dsl.hpn.flat import FlatNet
     from rssm_dsl.interp import RunConfig
     from rssm_dsl.interp.program import Runtime
     from rssm_dsl.interp.replay import (
@@ -328,11 +329,12 @@ def _simulate(file: Path, steps: int | None, until: float | None, mode: str, see
         if failed is not None:
             typer.echo(failed, err=True)
             return EXIT_ERRORS
-    return _report_run(file, comp, result, diags, verdict, cx, bounded, fmt, quiet,
+    return _report_run(file, comp, rt.net, result, diags, verdict, cx, bounded, fmt, quiet,
                        tracer.count if tracer is not None else None, trace)
 
 
-def _report_run(file: Path, comp: Compilation, result: RunResult, diags: list[Diagnostic],
+def _report_run(file: Path, comp: Compilation, net: FlatNet, result: RunResult,
+                diags: list[Diagnostic],
                 verdict: ReplayVerdict | None, cx: Counterexample | None, bounded: bool,
                 fmt: Format, quiet: bool, traced: int | None, trace: Path | None) -> int:
     """Print the result of a run; its exit code."""
@@ -340,10 +342,10 @@ def _report_run(file: Path, comp: Compilation, result: RunResult, diags: list[Di
         result.message += (" (the default bound: pass --until or --steps to run longer or "
                            "shorter)")
     if fmt is Format.json:
-        _print_json(result, diags, verdict)
+        _print_json(net, result, diags, verdict)
     else:
         _show(comp, diags, fmt)
-        _print_text(file, result, verdict, quiet)
+        _print_text(file, net, result, verdict, quiet)
         if traced is not None and not quiet:
             typer.echo(f"trace: {traced} events written to {trace}", err=True)
     return _exit_code(result, cx, verdict)
@@ -496,7 +498,8 @@ def _load_replay(comp: Compilation, rt: Runtime, replay: Path, mode: str, fmt: F
     return cx, forced, watch
 
 
-def _print_json(result: RunResult, diags: list[Diagnostic], verdict: ReplayVerdict | None) -> None:
+def _print_json(net: FlatNet, result: RunResult, diags: list[Diagnostic],
+                verdict: ReplayVerdict | None) -> None:
     out: dict[str, Any] = {
         "reason": result.reason, "message": result.message, "steps": result.steps,
         "time": result.time, "wall": round(result.wall, 3),
@@ -508,11 +511,11 @@ def _print_json(result: RunResult, diags: list[Diagnostic], verdict: ReplayVerdi
     }
     if verdict is not None:
         out["replay"] = {"reproduced": verdict.reproduced, "message": verdict.message,
-                         "forced": result.forced}
+                         "forced": result.forced, "forced_firings": forced_firings(net, result)}
     typer.echo(json.dumps(out, indent=2))
 
 
-def _print_text(file: Path, result: RunResult, verdict: ReplayVerdict | None,
+def _print_text(file: Path, net: FlatNet, result: RunResult, verdict: ReplayVerdict | None,
                 quiet: bool) -> None:
     from rssm_dsl.interp.summary import render
 
@@ -524,6 +527,30 @@ def _print_text(file: Path, result: RunResult, verdict: ReplayVerdict | None,
         extra = (f" ({result.forced} firing(s) forced against the data)"
                  if result.forced else "")
         typer.echo(f"replay: {verdict.message}{extra}", err=True)
+        for f in forced_firings(net, result)[:FORCED_SHOWN]:
+            typer.echo(f"  forced at step {f['step']}: {f['transition']} "
+                       f"[{f['condition']}] did not hold in the simulated data ({f['span']})",
+                       err=True)
+        if result.forced > FORCED_SHOWN:
+            typer.echo(f"  ... and {result.forced - FORCED_SHOWN} more (the trace marks each "
+                       "with \"forced\": true)", err=True)
+
+
+FORCED_SHOWN = 5     # forced firings named in the text report
+
+
+def forced_firings(net: FlatNet, result: RunResult) -> list[dict[str, Any]]:
+    """The replayed firings whose condition did not hold in the simulated data: the step,
+    the transition, its condition's words and where the user wrote it. The verifier chose
+    such a condition freely (a value it does not track, such as a device's reading); the
+    run shows whether the data could make it hold."""
+    words = {c.transition: c.text for c in net.conditions}
+    out = []
+    for step, t in result.forced_at:
+        ft = net.transitions[t]
+        out.append({"step": step, "transition": ft.name, "condition": words.get(t, ""),
+                    "span": str(ft.span)})
+    return out
 
 
 def _exit_code(result: RunResult, cx: Counterexample | None,

@@ -90,6 +90,7 @@ class RunResult:
     forced: int = 0        # replayed firings whose condition did not hold in the data
     summary: Snapshot | None = None
     stopped_cleanly: bool = False   # a StopSimulation without failed=True ended the run
+    forced_at: list[tuple[int, int]] = field(default_factory=list)  # (step, transition)
 
     @property
     def ok(self) -> bool:
@@ -121,6 +122,7 @@ class Simulator:
         self.markings: list[frozenset[int]] = []
         self.diagnostics: list[Diagnostic] = []
         self.forced_count = 0
+        self.forced_at: list[tuple[int, int]] = []   # (step, transition) of those forced
         self._next_progress = 0.0
         self.eager = self._local_steps()
         self.local: list[int] = []       # local steps that became enabled (deterministic)
@@ -356,7 +358,7 @@ class Simulator:
         summary = snapshot(rt, self.game, steps)
         result = RunResult(reason, message, steps, rt.time(), time.monotonic() - start,
                            self.diagnostics, self.game.marked_names(), blocked, self.markings,
-                           self.forced_count, summary, clean)
+                           self.forced_count, summary, clean, list(self.forced_at))
         rt.emit({"event": "end", "reason": reason, "message": message,
                  "problems": problems, "summary": summary.to_json()})
         if rt.tracer is not None:
@@ -672,6 +674,7 @@ class _Deterministic:
         self.was_forced = guard is not None and not guard()
         if self.was_forced:
             self.sim.forced_count += 1
+            self.sim.forced_at.append((steps, t))
         if gate is not None:
             gate.start(self.clock.ns)
         return t

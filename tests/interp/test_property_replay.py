@@ -85,7 +85,7 @@ def test_a_violated_invariant_over_a_value_replays_from_the_report(tmp_path: Pat
     assert prop["name"] == "count_bounded" and prop["kind"] == "always"
     code, out = replay(COUNTER, path)
     assert code == 1, out
-    assert out["replay"] == {"reproduced": True, "forced": 0, "message": (
+    assert out["replay"] == {"reproduced": True, "forced": 0, "forced_firings": [], "message": (
         f"property count_bounded violated: after {len(prop['counterexample']['steps'])} "
         "firings `counter.c.count <= 2` is false (counter.c.count = 3)")}
     r = rssmc("simulate", COUNTER, "--replay", path, "-q")

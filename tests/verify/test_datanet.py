@@ -19,6 +19,7 @@ import pytest
 from conftest import requires_spin
 from netkit import mode_pair, pipeline_ring, send_send_deadlock
 
+from rssm_dsl.commands.simulate import forced_firings
 from rssm_dsl.hpn.flat import FlatNet, NewSites, Role
 from rssm_dsl.hpn.flatten import flatten
 from rssm_dsl.interp import SimOptions, Simulator
@@ -179,6 +180,14 @@ def test_counterexample_data_cases_follow_the_receives(tmp_path: Path) -> None:
         verdict = judge(cx, steps, result, sim)
         assert verdict.reproduced and "differs" not in verdict.message, verdict.message
         assert result.forced == forced
+        # which firings were forced: the two cases the free net chose against the data
+        named = forced_firings(rt.net, result)
+        assert [f["step"] for f in named] == [s for s, _ in result.forced_at]
+        assert len(named) == forced and all(
+            rt.net.transitions[t].role is Role.CASE and steps[s] == t
+            for s, t in result.forced_at)
+        assert [(f["condition"], f["span"].split(":")[0]) for f in named] == [
+            ("new(answer)", "tests/verify/specs/handshake_cases.rssm")] * forced
 
 
 def test_report_lists_the_free_conditions() -> None:
