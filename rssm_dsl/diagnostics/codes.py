@@ -105,6 +105,9 @@ CODES: tuple[Code, ...] = (
          "a terminal or error condition used outside the switches of its behaviour"),
     Code("E609", "no-behaviours", _E, "a subsystem without behaviours"),
     Code("E610", "duplicate-arrangement", _E, "two send or two receive declarations in a behaviour"),
+    Code("W611", "output-resent-unchanged", _W,
+         "a behaviour sends, by default, an output it never updates to a consumer that "
+         "tests new(): the last value, as new, in every iteration"),
     # properties (the verifier's user-stated properties)
     Code("E620", "property-unknown-subsystem", _E, "a property names a subsystem the system does not have"),
     Code("E621", "property-unknown-behaviour", _E, "a property names a behaviour its subsystem does not have"),

@@ -95,7 +95,7 @@ def cond_1_1(st: State) -> bool:
 
 
 def f_2_2_1(st: State, stage: dict[str, Any]) -> None:
-    # pick: update tool_cmd, examples/verify/palletizer.rssm:139
+    # pick: update tool_cmd, examples/verify/palletizer.rssm:140
     v_conveyor = st.v_conveyor
     v_order = st.v_order
     v_tol = st.v_tol
@@ -103,20 +103,20 @@ def f_2_2_1(st: State, stage: dict[str, Any]) -> None:
     v_tool_cmd = st.v_tool_cmd
     _v1 = v_conveyor
     v_tool_cmd = _rt.set_field(v_tool_cmd, 'pose', _v1)
-    _v2 = (_rt.index(v_conveyor['position'], 2, 3, True, 'examples/verify/palletizer.rssm:141:40') + v_order['height'])
+    _v2 = (_rt.index(v_conveyor['position'], 2, 3, True, 'examples/verify/palletizer.rssm:142:40') + v_order['height'])
     _c3 = v_tool_cmd['pose']
     _c4 = _c3['position']
     _i5 = 2
-    v_tool_cmd = _rt.set_field(v_tool_cmd, 'pose', _rt.set_field(_c3, 'position', _rt.set_item(_c4, _i5, 3, _v2, 'examples/verify/palletizer.rssm:141:11')))
+    v_tool_cmd = _rt.set_field(v_tool_cmd, 'pose', _rt.set_field(_c3, 'position', _rt.set_item(_c4, _i5, 3, _v2, 'examples/verify/palletizer.rssm:142:11')))
     _v6 = (_rt.norm(_rt.asub(v_tool['pose']['position'], v_tool_cmd['pose']['position'])) < v_tol)
     v_tool_cmd = _rt.set_field(v_tool_cmd, 'suction', _v6)
     stage['v_tool_cmd'] = v_tool_cmd
 
 
 def f_2_3_1(st: State, stage: dict[str, Any]) -> None:
-    # pick: update memory, examples/verify/palletizer.rssm:144
+    # pick: update memory, examples/verify/palletizer.rssm:145
     v_tries = st.v_tries
-    v_tries = _rt.iadd(v_tries, 1, 'examples/verify/palletizer.rssm:144:34')
+    v_tries = _rt.iadd(v_tries, 1, 'examples/verify/palletizer.rssm:145:34')
     stage['v_tries'] = v_tries
 
 
@@ -135,7 +135,7 @@ def cond_2_2(st: State) -> bool:
 
 
 def f_3_2_1(st: State, stage: dict[str, Any]) -> None:
-    # place: update tool_cmd, examples/verify/palletizer.rssm:151
+    # place: update tool_cmd, examples/verify/palletizer.rssm:153
     v_order = st.v_order
     v_table = st.v_table
     v_tol = st.v_tol
@@ -143,11 +143,11 @@ def f_3_2_1(st: State, stage: dict[str, Any]) -> None:
     v_tool_cmd = st.v_tool_cmd
     _v1 = v_table
     v_tool_cmd = _rt.set_field(v_tool_cmd, 'pose', _v1)
-    _v2 = (_rt.index(v_table['position'], 2, 3, True, 'examples/verify/palletizer.rssm:153:40') + v_order['height'])
+    _v2 = (_rt.index(v_table['position'], 2, 3, True, 'examples/verify/palletizer.rssm:155:40') + v_order['height'])
     _c3 = v_tool_cmd['pose']
     _c4 = _c3['position']
     _i5 = 2
-    v_tool_cmd = _rt.set_field(v_tool_cmd, 'pose', _rt.set_field(_c3, 'position', _rt.set_item(_c4, _i5, 3, _v2, 'examples/verify/palletizer.rssm:153:11')))
+    v_tool_cmd = _rt.set_field(v_tool_cmd, 'pose', _rt.set_field(_c3, 'position', _rt.set_item(_c4, _i5, 3, _v2, 'examples/verify/palletizer.rssm:155:11')))
     _v6 = (_rt.norm(_rt.asub(v_tool['pose']['position'], v_tool_cmd['pose']['position'])) >= v_tol)
     v_tool_cmd = _rt.set_field(v_tool_cmd, 'suction', _v6)
     stage['v_tool_cmd'] = v_tool_cmd
@@ -161,14 +161,14 @@ def cond_3_1(st: State) -> bool:
 
 
 def f_4_1_1(st: State, stage: dict[str, Any]) -> None:
-    # retreat: update state, examples/verify/palletizer.rssm:161
+    # retreat: update state, examples/verify/palletizer.rssm:164
     v_order = st.v_order
     v_state = {'done': v_order['seq'], 'fault': False}
     stage['v_state'] = v_state
 
 
 def f_4_2_1(st: State, stage: dict[str, Any]) -> None:
-    # retreat: update tool_cmd, examples/verify/palletizer.rssm:160
+    # retreat: update tool_cmd, examples/verify/palletizer.rssm:163
     v_tool_cmd = {'pose': k_home, 'suction': False}
     stage['v_tool_cmd'] = v_tool_cmd
 
@@ -181,7 +181,7 @@ def cond_4_1(st: State) -> bool:
 
 
 def f_5_1_1(st: State, stage: dict[str, Any]) -> None:
-    # recover: update state, examples/verify/palletizer.rssm:169
+    # recover: update state, examples/verify/palletizer.rssm:172
     v_state = st.v_state
     _v1 = True
     v_state = _rt.set_field(v_state, 'fault', _v1)
@@ -189,7 +189,7 @@ def f_5_1_1(st: State, stage: dict[str, Any]) -> None:
 
 
 def f_5_2_1(st: State, stage: dict[str, Any]) -> None:
-    # recover: update tool_cmd, examples/verify/palletizer.rssm:168
+    # recover: update tool_cmd, examples/verify/palletizer.rssm:171
     v_tool_cmd = {'pose': k_home, 'suction': False}
     stage['v_tool_cmd'] = v_tool_cmd
 
@@ -233,7 +233,7 @@ def iterate_1(r: _Runner) -> _Iteration:
 def switch_1(st: State, conds: Mapping[str, bool]) -> str | None:
     # after idle: the first switch whose condition holds
     c_ordered = conds.get('ordered', False)
-    if c_ordered:  # switch idle -> pick, examples/verify/palletizer.rssm:174
+    if c_ordered:  # switch idle -> pick, examples/verify/palletizer.rssm:177
         return 'pick'
     raise _NoSwitch('idle')
 
@@ -270,9 +270,9 @@ def iterate_2(r: _Runner) -> _Iteration:
 def switch_2(st: State, conds: Mapping[str, bool]) -> str | None:
     # after pick: the first switch whose condition holds
     c_attached = conds.get('attached', False)
-    if c_attached:  # switch pick -> place, examples/verify/palletizer.rssm:175
+    if c_attached:  # switch pick -> place, examples/verify/palletizer.rssm:178
         return 'place'
-    return 'recover'  # otherwise: switch pick -> recover, examples/verify/palletizer.rssm:176
+    return 'recover'  # otherwise: switch pick -> recover, examples/verify/palletizer.rssm:179
 
 
 # ---------------------------------------------------------------- behaviour place: P^B[picker,c,place]
@@ -307,7 +307,7 @@ def iterate_3(r: _Runner) -> _Iteration:
 def switch_3(st: State, conds: Mapping[str, bool]) -> str | None:
     # after place: the first switch whose condition holds
     c_released = conds.get('released', False)
-    if c_released:  # switch place -> retreat, examples/verify/palletizer.rssm:177
+    if c_released:  # switch place -> retreat, examples/verify/palletizer.rssm:180
         return 'retreat'
     raise _NoSwitch('place')
 
@@ -344,7 +344,7 @@ def iterate_4(r: _Runner) -> _Iteration:
 def switch_4(st: State, conds: Mapping[str, bool]) -> str | None:
     # after retreat: the first switch whose condition holds
     c_at_home = conds.get('at_home', False)
-    if c_at_home:  # switch retreat -> idle, examples/verify/palletizer.rssm:178
+    if c_at_home:  # switch retreat -> idle, examples/verify/palletizer.rssm:181
         return 'idle'
     raise _NoSwitch('retreat')
 
@@ -381,7 +381,7 @@ def iterate_5(r: _Runner) -> _Iteration:
 def switch_5(st: State, conds: Mapping[str, bool]) -> str | None:
     # after recover: the first switch whose condition holds
     c_recovered = conds.get('recovered', False)
-    if c_recovered:  # switch recover -> idle, examples/verify/palletizer.rssm:179
+    if c_recovered:  # switch recover -> idle, examples/verify/palletizer.rssm:182
         return 'idle'
     raise _NoSwitch('recover')
 

@@ -79,13 +79,13 @@ def _initial(p: Mapping[str, Any]) -> State:
 
 
 def f_1_2_1(st: State, stage: dict[str, Any]) -> None:
-    # idle: update tool_cmd, examples/verify/palletizer.rssm:220
+    # idle: update tool_cmd, examples/verify/palletizer.rssm:223
     v_tool_cmd = {'pose': k_home, 'suction': False}
     stage['v_tool_cmd'] = v_tool_cmd
 
 
 def f_1_3_1(st: State, stage: dict[str, Any]) -> None:
-    # idle: update memory, examples/verify/palletizer.rssm:221
+    # idle: update memory, examples/verify/palletizer.rssm:224
     v_tries = 0
     stage['v_tries'] = v_tries
 
@@ -98,7 +98,7 @@ def cond_1_1(st: State) -> bool:
 
 
 def f_2_2_1(st: State, stage: dict[str, Any]) -> None:
-    # fetch: update tool_cmd, examples/verify/palletizer.rssm:226
+    # fetch: update tool_cmd, examples/verify/palletizer.rssm:230
     v_order = st.v_order
     v_table = st.v_table
     v_tol = st.v_tol
@@ -106,20 +106,20 @@ def f_2_2_1(st: State, stage: dict[str, Any]) -> None:
     v_tool_cmd = st.v_tool_cmd
     _v1 = v_table
     v_tool_cmd = _rt.set_field(v_tool_cmd, 'pose', _v1)
-    _v2 = (_rt.index(v_table['position'], 2, 3, True, 'examples/verify/palletizer.rssm:228:40') + v_order['height'])
+    _v2 = (_rt.index(v_table['position'], 2, 3, True, 'examples/verify/palletizer.rssm:232:40') + v_order['height'])
     _c3 = v_tool_cmd['pose']
     _c4 = _c3['position']
     _i5 = 2
-    v_tool_cmd = _rt.set_field(v_tool_cmd, 'pose', _rt.set_field(_c3, 'position', _rt.set_item(_c4, _i5, 3, _v2, 'examples/verify/palletizer.rssm:228:11')))
+    v_tool_cmd = _rt.set_field(v_tool_cmd, 'pose', _rt.set_field(_c3, 'position', _rt.set_item(_c4, _i5, 3, _v2, 'examples/verify/palletizer.rssm:232:11')))
     _v6 = (_rt.norm(_rt.asub(v_tool['pose']['position'], v_tool_cmd['pose']['position'])) < v_tol)
     v_tool_cmd = _rt.set_field(v_tool_cmd, 'suction', _v6)
     stage['v_tool_cmd'] = v_tool_cmd
 
 
 def f_2_3_1(st: State, stage: dict[str, Any]) -> None:
-    # fetch: update memory, examples/verify/palletizer.rssm:231
+    # fetch: update memory, examples/verify/palletizer.rssm:235
     v_tries = st.v_tries
-    v_tries = _rt.iadd(v_tries, 1, 'examples/verify/palletizer.rssm:231:34')
+    v_tries = _rt.iadd(v_tries, 1, 'examples/verify/palletizer.rssm:235:34')
     stage['v_tries'] = v_tries
 
 
@@ -138,7 +138,7 @@ def cond_2_2(st: State) -> bool:
 
 
 def f_3_2_1(st: State, stage: dict[str, Any]) -> None:
-    # stack: update tool_cmd, examples/verify/palletizer.rssm:238
+    # stack: update tool_cmd, examples/verify/palletizer.rssm:243
     v_order = st.v_order
     v_pallet_z = st.v_pallet_z
     v_pattern = st.v_pattern
@@ -146,9 +146,9 @@ def f_3_2_1(st: State, stage: dict[str, Any]) -> None:
     v_tol = st.v_tol
     v_tool = st.v_tool
     v_tool_cmd = st.v_tool_cmd
-    v_slot = _rt.index(v_pattern, _rt.mod(v_order['index'], v_per_layer, 'examples/verify/palletizer.rssm:239:30'), 4, False, 'examples/verify/palletizer.rssm:239:22')
-    v_layers = (_rt.math1(_rt.floor, 'floor', _rt.div(v_order['index'], v_per_layer, 'examples/verify/palletizer.rssm:240:30'), 'examples/verify/palletizer.rssm:240:24') + 1.0)
-    _v1 = _rt.float_array((_rt.index(v_slot, 0, 2, True, 'examples/verify/palletizer.rssm:241:38'), _rt.index(v_slot, 1, 2, True, 'examples/verify/palletizer.rssm:241:47'), (v_pallet_z + (v_layers * v_order['height']))))
+    v_slot = _rt.index(v_pattern, _rt.mod(v_order['index'], v_per_layer, 'examples/verify/palletizer.rssm:244:30'), 4, False, 'examples/verify/palletizer.rssm:244:22')
+    v_layers = (_rt.math1(_rt.floor, 'floor', _rt.div(v_order['index'], v_per_layer, 'examples/verify/palletizer.rssm:245:30'), 'examples/verify/palletizer.rssm:245:24') + 1.0)
+    _v1 = _rt.float_array((_rt.index(v_slot, 0, 2, True, 'examples/verify/palletizer.rssm:246:38'), _rt.index(v_slot, 1, 2, True, 'examples/verify/palletizer.rssm:246:47'), (v_pallet_z + (v_layers * v_order['height']))))
     _c2 = v_tool_cmd['pose']
     v_tool_cmd = _rt.set_field(v_tool_cmd, 'pose', _rt.set_field(_c2, 'position', _v1))
     _v3 = 0.0
@@ -167,14 +167,14 @@ def cond_3_1(st: State) -> bool:
 
 
 def f_4_1_1(st: State, stage: dict[str, Any]) -> None:
-    # retreat: update state, examples/verify/palletizer.rssm:250
+    # retreat: update state, examples/verify/palletizer.rssm:256
     v_order = st.v_order
     v_state = {'done': v_order['seq'], 'fault': False}
     stage['v_state'] = v_state
 
 
 def f_4_2_1(st: State, stage: dict[str, Any]) -> None:
-    # retreat: update tool_cmd, examples/verify/palletizer.rssm:249
+    # retreat: update tool_cmd, examples/verify/palletizer.rssm:255
     v_tool_cmd = {'pose': k_home, 'suction': False}
     stage['v_tool_cmd'] = v_tool_cmd
 
@@ -187,7 +187,7 @@ def cond_4_1(st: State) -> bool:
 
 
 def f_5_1_1(st: State, stage: dict[str, Any]) -> None:
-    # recover: update state, examples/verify/palletizer.rssm:256
+    # recover: update state, examples/verify/palletizer.rssm:262
     v_state = st.v_state
     _v1 = True
     v_state = _rt.set_field(v_state, 'fault', _v1)
@@ -195,7 +195,7 @@ def f_5_1_1(st: State, stage: dict[str, Any]) -> None:
 
 
 def f_5_2_1(st: State, stage: dict[str, Any]) -> None:
-    # recover: update tool_cmd, examples/verify/palletizer.rssm:255
+    # recover: update tool_cmd, examples/verify/palletizer.rssm:261
     v_tool_cmd = {'pose': k_home, 'suction': False}
     stage['v_tool_cmd'] = v_tool_cmd
 
@@ -239,7 +239,7 @@ def iterate_1(r: _Runner) -> _Iteration:
 def switch_1(st: State, conds: Mapping[str, bool]) -> str | None:
     # after idle: the first switch whose condition holds
     c_ordered = conds.get('ordered', False)
-    if c_ordered:  # switch idle -> fetch, examples/verify/palletizer.rssm:261
+    if c_ordered:  # switch idle -> fetch, examples/verify/palletizer.rssm:267
         return 'fetch'
     raise _NoSwitch('idle')
 
@@ -276,9 +276,9 @@ def iterate_2(r: _Runner) -> _Iteration:
 def switch_2(st: State, conds: Mapping[str, bool]) -> str | None:
     # after fetch: the first switch whose condition holds
     c_attached = conds.get('attached', False)
-    if c_attached:  # switch fetch -> stack, examples/verify/palletizer.rssm:262
+    if c_attached:  # switch fetch -> stack, examples/verify/palletizer.rssm:268
         return 'stack'
-    return 'recover'  # otherwise: switch fetch -> recover, examples/verify/palletizer.rssm:263
+    return 'recover'  # otherwise: switch fetch -> recover, examples/verify/palletizer.rssm:269
 
 
 # ---------------------------------------------------------------- behaviour stack: P^B[stacker,c,stack]
@@ -313,7 +313,7 @@ def iterate_3(r: _Runner) -> _Iteration:
 def switch_3(st: State, conds: Mapping[str, bool]) -> str | None:
     # after stack: the first switch whose condition holds
     c_released = conds.get('released', False)
-    if c_released:  # switch stack -> retreat, examples/verify/palletizer.rssm:264
+    if c_released:  # switch stack -> retreat, examples/verify/palletizer.rssm:270
         return 'retreat'
     raise _NoSwitch('stack')
 
@@ -350,7 +350,7 @@ def iterate_4(r: _Runner) -> _Iteration:
 def switch_4(st: State, conds: Mapping[str, bool]) -> str | None:
     # after retreat: the first switch whose condition holds
     c_at_home = conds.get('at_home', False)
-    if c_at_home:  # switch retreat -> idle, examples/verify/palletizer.rssm:265
+    if c_at_home:  # switch retreat -> idle, examples/verify/palletizer.rssm:271
         return 'idle'
     raise _NoSwitch('retreat')
 
@@ -387,7 +387,7 @@ def iterate_5(r: _Runner) -> _Iteration:
 def switch_5(st: State, conds: Mapping[str, bool]) -> str | None:
     # after recover: the first switch whose condition holds
     c_recovered = conds.get('recovered', False)
-    if c_recovered:  # switch recover -> idle, examples/verify/palletizer.rssm:266
+    if c_recovered:  # switch recover -> idle, examples/verify/palletizer.rssm:272
         return 'idle'
     raise _NoSwitch('recover')
 

@@ -66,21 +66,21 @@ def _initial(p: Mapping[str, Any]) -> State:
 
 
 def f_1_1_1(st: State, stage: dict[str, Any]) -> None:
-    # track: update command, examples/verify/palletizer.rssm:278
+    # track: update command, examples/verify/palletizer.rssm:284
     v_command = st.v_command
     v_feedback = st.v_feedback
     v_max_step = st.v_max_step
     v_tool_cmd = st.v_tool_cmd
     v_d = _rt.asub(v_tool_cmd['pose']['position'], v_feedback['pose']['position'])
     v_command = v_tool_cmd
-    _v1 = _rt.aadd(v_feedback['pose']['position'], _rt.amul(v_d, _rt.fmin(1.0, _rt.div(v_max_step, _rt.fmax(_rt.norm(v_d), 1e-06), 'examples/verify/palletizer.rssm:281:74'))))
+    _v1 = _rt.aadd(v_feedback['pose']['position'], _rt.amul(v_d, _rt.fmin(1.0, _rt.div(v_max_step, _rt.fmax(_rt.norm(v_d), 1e-06), 'examples/verify/palletizer.rssm:287:74'))))
     _c2 = v_command['pose']
     v_command = _rt.set_field(v_command, 'pose', _rt.set_field(_c2, 'position', _v1))
     stage['v_command'] = v_command
 
 
 def f_1_2_1(st: State, stage: dict[str, Any]) -> None:
-    # track: update tool, examples/verify/palletizer.rssm:283
+    # track: update tool, examples/verify/palletizer.rssm:289
     v_feedback = st.v_feedback
     v_tool = v_feedback
     stage['v_tool'] = v_tool
