@@ -37,10 +37,25 @@ def bits(mask: int) -> list[int]:
 
 
 def to_mask(indices: frozenset[int] | tuple[int, ...] | list[int]) -> int:
-    mask = 0
+    """The mask with the bits ``indices`` set. A long list is set in a byte array and made
+    one int at the end: OR-ing bit by bit into a big int copies it each time (quadratic)."""
+    if len(indices) < 64:
+        mask = 0
+        for i in indices:
+            mask |= 1 << i
+        return mask
+    top = max(indices)
+    buf = bytearray(top // 8 + 1)
     for i in indices:
-        mask |= 1 << i
-    return mask
+        buf[i >> 3] |= 1 << (i & 7)
+    return int.from_bytes(buf, "little")
+
+
+def _union(masks: tuple[int, ...], indices: tuple[int, ...]) -> int:
+    out = 0
+    for i in indices:
+        out |= masks[i]
+    return out
 
 
 def to_words(mask: int, nwords: int) -> list[int]:
@@ -98,7 +113,10 @@ class NetBits:
         produce = tuple(to_mask(ps) for ps in rule.produce)
         consumers = tuple(to_mask(ts) for ts in rule.consumers)
         producers = tuple(to_mask(ts) for ts in rule.producers)
-        conflict = tuple(to_mask(rule.conflict(t)) for t in range(ntrans))
+        # t and the transitions sharing an input place with it (rule.conflict), as the union
+        # of its input places' consumers: the variants of one transition over tracked values
+        # share their input places, so building each set first was quadratic
+        conflict = tuple(_union(consumers, ps) | (1 << t) for t, ps in enumerate(rule.pre))
         nwords = max(1, (nplaces + 63) // 64)
         pre_words = np.array([to_words(m, nwords) for m in pre], dtype=np.uint64).reshape(
             ntrans, nwords)

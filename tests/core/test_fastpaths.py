@@ -20,7 +20,7 @@ from hypothesis import strategies as st
 from rssm_core.firing import Marking, Net
 from rssm_dsl.interp.codegen import FiringCode, exclusive_places
 from rssm_dsl.interp.engine import TokenGame, UnsafeFiring
-from rssm_dsl.verify.netbits import NetBits, bits, from_words, to_words
+from rssm_dsl.verify.netbits import NetBits, bits, from_words, to_mask, to_words
 from rssm_dsl.verify.statespace import _Kernel, explore_full
 from rssm_dsl.verify.stubborn import explore_reduced
 from tests.core.nets import RandomNet, explore, markings_of, mask, nets
@@ -280,6 +280,11 @@ def test_bitmasks_and_the_vectorised_kernel_are_the_rule(
     net, markings = case
     rule, nb = net.rule(), NetBits.of(net.flat())
     assert nb.rule.pre == rule.pre and nb.rule.post == rule.post
+    for t in range(nb.ntrans):         # built from the consumers' masks: the rule's sets
+        assert bits(nb.conflict[t]) == list(rule.conflict(t))
+        assert bits(nb.pre[t]) == list(rule.pre[t])
+    for p in range(nb.nplaces):
+        assert bits(nb.consumers[p]) == list(rule.consumers[p])
     kernel = _Kernel(nb)
     perm = [int(t) for t in kernel.perm]
     rows = np.array([to_words(mask(m), nb.nwords) for m in markings], dtype=np.uint64)
@@ -370,3 +375,11 @@ def test_the_random_nets_contain_the_cases_that_matter(what: str) -> None:
     found = find(nets(), wanted, settings=settings(max_examples=2000, deadline=None,
                                                    database=None))
     assert wanted(found)
+
+
+@given(st.sets(st.integers(min_value=0, max_value=5000), max_size=300))
+def test_a_mask_has_exactly_the_bits_given(indices: set[int]) -> None:
+    """Short lists are OR-ed bit by bit, long ones set in a byte array: the same mask."""
+    for form in (sorted(indices), tuple(indices), frozenset(indices)):
+        mask = to_mask(form)
+        assert bits(mask) == sorted(indices)
