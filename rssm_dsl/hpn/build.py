@@ -301,6 +301,9 @@ class HpnBuilder:
                          N.place(*base, "in", sup=o.sup), N.place(*base, "out", sup=o.sup), w)
         buffers = o.outputs if verb == "snd" else o.inputs
         index = {b.name: i for i, b in enumerate(buffers, start=1)}
+        named: dict[str, Buffer] = {}
+        for b in buffers:
+            named.setdefault(b.name, b)
         counter = [0]
 
         def internal(span: Span) -> str:
@@ -311,7 +314,7 @@ class HpnBuilder:
         def emit(a: Arrangement) -> tuple[list[str], list[str]]:
             match a:
                 case ArrLeaf():
-                    buf = next(b for b in buffers if b.name == a.buffer)
+                    buf = named[a.buffer]        # (a scan per leaf: quadratic in them)
                     page = self._mode_page(o, buf, verb, index[a.buffer], pid, base, who, w)
                     return [page], [page]
                 case ArrPar():
@@ -368,16 +371,26 @@ class HpnBuilder:
                                    channel=ch.id))
 
         mode = buf.mode
-        labels = {
-            Step.START_SEND: f"starts sending {buf.name} ({mode.value}, {chan} empty)",
-            Step.OVERWRITE: f"overwrites unread {buf.name} (nonblocking)",
-            Step.SENT: f"has sent {buf.name}",
-            Step.SENT_WAIT: f"has sent {buf.name}, waits until it is taken",
-            Step.SEEN_TAKEN: f"sees {buf.name} taken (blocking)",
-            Step.TAKE: f"takes new {buf.name} ({mode.value})",
-            Step.RECEIVED: f"has received {buf.name}",
-            Step.NOTHING_NEW: f"finds no new {buf.name} (nonblocking)",
-        }
+
+        def label(step: Step) -> str:      # (only those of the steps of this mode's net)
+            match step:
+                case Step.START_SEND:
+                    return f"starts sending {buf.name} ({mode.value}, {chan} empty)"
+                case Step.OVERWRITE:
+                    return f"overwrites unread {buf.name} (nonblocking)"
+                case Step.SENT:
+                    return f"has sent {buf.name}"
+                case Step.SENT_WAIT:
+                    return f"has sent {buf.name}, waits until it is taken"
+                case Step.SEEN_TAKEN:
+                    return f"sees {buf.name} taken (blocking)"
+                case Step.TAKE:
+                    return f"takes new {buf.name} ({mode.value})"
+                case Step.RECEIVED:
+                    return f"has received {buf.name}"
+                case Step.NOTHING_NEW:
+                    return f"finds no new {buf.name} (nonblocking)"
+            raise ValueError(step)
         places = {Slot.IN: p_in, Slot.OUT: p_out, Slot.OP: op, Slot.FULL: full,
                   Slot.EMPTY: empty}
 
@@ -393,7 +406,7 @@ class HpnBuilder:
             inputs = [place(x) for x in tr.inputs]
             outputs = [place(x) for x in tr.outputs]
             tid = self._trans(N.transition(*pb, tr.number, sup=sup), pid, buf.span,
-                              f"{who} {labels[tr.step]}", role)
+                              f"{who} {label(tr.step)}", role)
             self._arcs(pid, inputs, tid, outputs)
         return pid
 
@@ -436,10 +449,22 @@ class HpnBuilder:
         by_id.update({d.id: d for d in self.s.devices()})
         j_of = {x: a.designator for a in self.s.agents
                 for x in [s.id for s in a.subsystems] + [d.id for d in a.devices]}
+        # a buffer's position among its owner's outputs (rho) or inputs (kappa), from 1; by
+        # owner, made once (a scan per channel was quadratic in the buffers of a subsystem)
+        positions: dict[tuple[str, bool], dict[str, int]] = {}
+
+        def position(x: Subsystem | Device, name: str, output: bool) -> int:
+            table = positions.get((x.id, output))
+            if table is None:
+                table = positions[(x.id, output)] = {}
+                for i, b in enumerate(x.outputs if output else x.inputs, start=1):
+                    table.setdefault(b.name, i)
+            return table[name]
+
         for ch in self.s.channels:
             prod, cons = by_id[ch.producer.owner], by_id[ch.consumer.owner]
-            rho = [b.name for b in prod.outputs].index(ch.producer.name) + 1
-            kappa = [b.name for b in cons.inputs].index(ch.consumer.name) + 1
+            rho = position(prod, ch.producer.name, output=True)
+            kappa = position(cons, ch.consumer.name, output=False)
             p_ends = self.ends.get((ch.id, "producer"), _Endpoint())
             c_ends = self.ends.get((ch.id, "consumer"), _Endpoint())
             chan = f"channel {ch.producer.qualified} -> {ch.consumer.qualified} ({ch.modes})"

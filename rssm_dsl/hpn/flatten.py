@@ -20,6 +20,8 @@ def _subsystem_of(hpn: HPN, page: str) -> tuple[str | None, str | None]:
 
 
 def flatten(hpn: HPN) -> FlatNet:
+    # (subsystem, behaviour) of each page, once per page, not once per element
+    owned = {pid: _subsystem_of(hpn, pid) for pid in hpn.pages}
     flat_of: dict[str, str] = {}
     for pid, place in hpn.places.items():
         flat_of[pid] = place.fusion or pid
@@ -36,7 +38,7 @@ def flatten(hpn: HPN) -> FlatNet:
                                     fs.channel, (consumer or [pg.id for pg in on])[0]))
             continue
         p = hpn.places[n]
-        sub, beh = _subsystem_of(hpn, p.page)
+        sub, beh = owned[p.page]
         op = p.operation
         places.append(FlatPlace(index[n], n, p.label, p.span, (n,),
                                 n if op is not None else None, sub, beh,
@@ -67,7 +69,7 @@ def flatten(hpn: HPN) -> FlatNet:
             c = choices[tid]
             conditions.append(FlatCondition(len(transitions), c.kind.value, c.text,
                                             c.new if c.kind is CondKind.CASE else None))
-        sub, beh = _subsystem_of(hpn, t.page)
+        sub, beh = owned[t.page]
         channel = None
         for pl in pre[tid] | post[tid]:
             channel = channel or places[pl].channel

@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import threading
+from bisect import bisect_right
 from collections.abc import Mapping
 from dataclasses import field, replace
 
@@ -105,17 +106,34 @@ def _once_per_definition(bag: DiagnosticBag, start: int,
     """The diagnostics from ``start`` on that point into an agent definition's text, one per
     problem: each instance finds it again, so the first instance's is kept, saying how many
     others have it too."""
-    inside = [(d.name, d.span.file, d.span.offset, d.span.end_offset)
-              for d in definitions.values()]
-    if not inside:
+    if not definitions:
         return
+    # per file, the definitions' (start, end, name) in the order of their starts (top-level
+    # declarations do not overlap): each diagnostic's is found by bisection, not by a scan
+    # of all the definitions (diagnostics times definitions)
+    inside: dict[str, list[tuple[int, int, str]]] = {}
+    for x in definitions.values():
+        inside.setdefault(x.span.file, []).append((x.span.offset, x.span.end_offset, x.name))
+    starts: dict[str, list[int]] = {}
+    for f, spans in inside.items():
+        spans.sort()
+        starts[f] = [a for a, _, _ in spans]
+
+    def definition_of(d: Diagnostic) -> str | None:
+        spans = inside.get(d.span.file)
+        if spans is None:
+            return None
+        at = bisect_right(starts[d.span.file], d.span.offset) - 1
+        if at >= 0 and spans[at][0] <= d.span.offset < spans[at][1]:
+            return spans[at][2]
+        return None
+
     kept: list[Diagnostic] = []
     count: dict[tuple[str, str, int, int], int] = {}
     first: dict[tuple[str, str, int, int], int] = {}
     owner: dict[tuple[str, str, int, int], str] = {}
     for d in bag.items[start:]:
-        name = next((n for n, f, a, b in inside
-                     if d.span.file == f and a <= d.span.offset < b), None)
+        name = definition_of(d)
         if name is None:
             kept.append(d)
             continue

@@ -80,8 +80,9 @@ def test_the_formatter_prints_the_new_syntax_back() -> None:
     text = ("enum Phase {idle,approach ,\ngrasp,}\ntype Slot = 0 .. 11\n"
             "record R { a : - 5..-1 , b: 0..3 [2] }\nconst c = 1. + .5\n")
     result = format_text(text)
+    # the enum was written on two lines and stays expanded; the record on one line stays
     assert result.text == ("enum Phase {\n  idle, approach,\n  grasp,\n}\n"
-                           "type Slot = 0..11\nrecord R {\n  a: -5..-1,\n  b: 0..3[2]\n}\n"
+                           "type Slot = 0..11\nrecord R { a: -5..-1, b: 0..3[2] }\n"
                            "const c = 1. + .5\n")
     assert format_text(result.text).text == result.text
 
