@@ -1,8 +1,9 @@
 """Language-server latency, measured from a real client over stdio, on generated
 specifications of about 5,700 and 20,000 lines (the paper's agent, repeated):
 
-- edit: from a didChange to the diagnostics published for that version. Goal: median under
-  50 ms, p90 under 100 ms for an edit inside one agent;
+- edit: from a didChange to the diagnostics published for that version. Goal (issue 32):
+  median under 20 ms at about 5,000 lines and under 50 ms at 20,000, with incremental
+  changes and with the whole text sent at each change alike;
 - hover, completion, document symbols: from the request to its answer, each asked right
   after an edit's diagnostics (so it pays for whatever the edit left to do), and again
   after 0.3 s without typing ("idle": VS Code's hover delay). Goal: median under 20 ms.
@@ -233,6 +234,8 @@ def run(agents: int, edits: int, full: bool = False) -> dict[str, list[float]]:
     for kind, ts in times.items():
         med, p90 = _pct(ts, 0.5), _pct(ts, 0.9)
         goal_med, goal_p90 = GOALS_MS[kind]
+        if kind == "edit":
+            goal_med, goal_p90 = (20.0, None) if nlines <= 6_000 else (50.0, None)
         met = med < goal_med and (goal_p90 is None or p90 < goal_p90)
         goal = f"median < {goal_med:.0f}" + (f", p90 < {goal_p90:.0f}" if goal_p90 else "")
         print(f"  {kind:<17} median {med:5.1f} ms  p90 {p90:5.1f} ms  worst "
