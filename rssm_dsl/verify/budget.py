@@ -331,15 +331,33 @@ def resident_memory(pid: int | str = "self") -> int:
 
 
 def high_water_mark() -> int:
-    """The peak resident size of this process or of the largest of its waited-for children,
-    bytes (``getrusage``); 0 when unknown."""
+    """The peak resident size of this process (``VmHWM`` of /proc/self/status: of its own
+    image; ``getrusage``'s ``ru_maxrss`` keeps, across exec, the size of the process it was
+    forked from: a test suite's 2 GB) or, if larger, of the largest child it waited for (SPIN:
+    forked from this process, so never more than this process's size at the fork plus its
+    own), bytes; 0 when unknown."""
+    own = _status_kb("VmHWM")
     try:
         import resource
     except ImportError:
-        return 0
+        return (own or 0) * 1024
     unit = 1 if os.uname().sysname == "Darwin" else 1024
-    return unit * max(int(resource.getrusage(who).ru_maxrss)
-                      for who in (resource.RUSAGE_SELF, resource.RUSAGE_CHILDREN))
+    if own is None:
+        own = int(resource.getrusage(resource.RUSAGE_SELF).ru_maxrss) * unit // 1024
+    children = int(resource.getrusage(resource.RUSAGE_CHILDREN).ru_maxrss) * unit
+    return max(own * 1024, children)
+
+
+def _status_kb(field: str) -> int | None:
+    """A ``kB`` field of /proc/self/status, or None where there is none."""
+    try:
+        with open("/proc/self/status") as f:
+            for line in f:
+                if line.startswith(field + ":"):
+                    return int(line.split()[1])
+    except (OSError, ValueError, IndexError):
+        return None
+    return None
 
 
 def _meminfo(field: str) -> int | None:

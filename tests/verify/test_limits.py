@@ -255,3 +255,19 @@ def test_the_reported_peak_memory_counts_a_spike_no_sample_saw() -> None:
                          text=True, timeout=300, check=True).stdout
     before, peak = map(int, out.split())
     assert peak >= before + 290 * MB, (before, peak)
+
+
+def test_the_reported_peak_is_not_the_parent_s() -> None:
+    """A verify started by a large process (a test suite, an IDE) reports its own peak:
+    getrusage's ru_maxrss keeps the parent's size across exec (a small run reported 2 GB
+    under a 2 GB pytest, and a memory limit set from it never bound)."""
+    code = ("import json, subprocess, sys\n"
+            "big = bytearray(800 << 20)\n"
+            "for i in range(0, len(big), 4096): big[i] = 1\n"
+            "out = subprocess.run([sys.executable, '-m', 'rssm_dsl', 'verify', sys.argv[1],\n"
+            "                      '--format', 'json'], capture_output=True, text=True)\n"
+            "print(json.loads(out.stdout)['peak_memory_bytes'])\n")
+    out = subprocess.run([sys.executable, "-c", code,
+                          str(EXAMPLES / "verify" / "deadlock_pair.rssm")], cwd=ROOT,
+                         capture_output=True, text=True, timeout=300, check=True).stdout
+    assert int(out) < 500 * MB, int(out) >> 20
