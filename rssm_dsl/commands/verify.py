@@ -21,6 +21,7 @@ a terminal, a line every 2 s with ``--progress`` elsewhere.
 from __future__ import annotations
 
 import contextlib
+import dataclasses
 import gc
 import math
 import os
@@ -260,6 +261,10 @@ def _verify(budget: Budget, watch: Watchdog, live: _Live | None, file: Path, for
                         progress_check, spec)
     if live is not None:
         live.clear()
+    # the peak of the whole run: the properties, the falsifier and the cross-checks came
+    # after the engines' report was made
+    result = dataclasses.replace(result, peak_memory=max(result.peak_memory,
+                                                         budget.peak_resident()))
     if format is Format.json:
         import json
 

@@ -593,7 +593,9 @@ class PropertyWatch:
         name = self.prop.name
         texts = [f"`{expr_text(e)}`" for e in self.prop.expressions]
         fail = f"the violation of property {name} is not reproduced"
-        if result.reason != "replayed":
+        # a response property violated by the system's end: the run finishes on the path
+        ended = result.reason == "finished" and self.prop.kind == "response"
+        if result.reason != "replayed" and not ended:
             what = f"stopped at step {result.steps}" if result.reason == "error" else \
                 f"stopped early ({result.reason})"
             return ReplayVerdict(False, f"the replay {what}: {result.message}; {fail}",
@@ -605,7 +607,7 @@ class PropertyWatch:
                                  f"{e.message}; {fail}")
         try:
             return self._always(texts[0], fail) if self.prop.kind == "always" else \
-                self._response(texts[0], texts[1], fail)
+                self._response(texts[0], texts[1], fail, ended)
         except (UnknownValue, PropertyError, EvalError) as e:
             message = e.message if isinstance(e, EvalError) else str(e)
             return ReplayVerdict(False, f"{', '.join(texts)} cannot be evaluated on the "
@@ -622,7 +624,7 @@ class PropertyWatch:
         return ReplayVerdict(True, f"property {name} violated: after {n} firings {p} is false "
                              f"({self._atoms(seen)})")
 
-    def _response(self, p: str, q: str, fail: str) -> ReplayVerdict:
+    def _response(self, p: str, q: str, fail: str, ended: bool = False) -> ReplayVerdict:
         name, n, cx = self.prop.name, self.start, self.cx
         at = {s.step: s for s in self.seen}
         first = at.get(n)
@@ -636,6 +638,11 @@ class PropertyWatch:
                 return ReplayVerdict(False, f"{q} holds after {seen.step} firings "
                                      f"({self._atoms(seen)}): {fail}")
         later = len(self.seen) - 1
+        if ended:
+            return ReplayVerdict(True, f"property {name} violated: after {n} firings {p} "
+                                 f"holds ({self._atoms(first)}), and {q} holds at none of the "
+                                 f"{later} states that follow, up to the system's end (every "
+                                 "agent terminated)")
         entry, size = n + len(cx.to_cycle), len(cx.cycle)
         if size == 0:
             assert self.sim is not None

@@ -192,6 +192,15 @@ def track_values(t: TrackedNet, plan: ValuePlan | None,
     for u in net.transitions:
         s = v.steps.get(u.index)
         variants = _variants(u, s, cone, plan, at) if s is not None else None
+        if variants is None and s is not None and s.holds is not None and not s.reads:
+            # a guard that reads no variable, only parameters and constants (`when done and
+            # quick`, `quick` a param): decided as it is, never a free choice; false: the
+            # transition never fires, so the tracked net leaves it out
+            fixed = s.holds({})
+            if fixed is not None:
+                decided.add(t.origin[u.index])
+                if fixed is False:
+                    continue
         if variants is None:
             variants = [(u.name, u.pre, u.post, ())]
         elif s is not None and s.holds is not None and _decides(s, cone, plan):

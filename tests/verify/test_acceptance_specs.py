@@ -53,7 +53,24 @@ A fourth trial (2026-11-29):
 - drone_pad_bug: the pad locks on the load switch alone: all three properties violated;
 - agv_fleet: a dispatcher receiving six AGVs' statuses blocking and sharing one charger
   among them: VERIFIED by hand; its properties' slice is the whole net (the dispatcher
-  waits on every AGV), not explored within 120 s (a long case, a strict expected failure)."""
+  waits on every AGV), not explored within 120 s (a long case, a strict expected failure).
+
+The trial of issue 32 (2026-11-29; a fleet written with an agent definition, a pattern of
+docs/patterns.md, a planted bug):
+
+- dock: a robot asks a charging dock for its slot, retries, gives up (pattern 2), four
+  properties: VERIFIED; dock_bug: `wait` no longer updates the request, re-sent every
+  iteration: `no_give_up_while_charging` violated, the other three hold;
+- fleet_free: a dispatcher and six robots of one definition, each robot given its next job
+  as soon as it is free: VERIFIED;
+- fleet2_bug: two robots, the one with `work_time = 1` ends after its first report:
+  `job2_acknowledged` violated, `job_acknowledged` (r1, work_time 2) holds. It was reported
+  violated too, through r1 taking `switch report -> end when reported and work_time == 1`:
+  a guard over parameters only was a free choice in the value-tracked net (fixed:
+  rssm_dsl/verify/valuenet.py decides it);
+- dispatch_fleet: the dispatcher hands a shift of jobs to the first free robot, one per
+  iteration: VERIFIED by hand; the properties' slices are not decided within the limits
+  (a long case, a strict expected failure)."""
 
 from __future__ import annotations
 
@@ -75,6 +92,9 @@ LIMITS = {"fleet": "60", "warehouse": "180", "pick_place": "300", "fleet_busy": 
           "agv_fleet": "120"}
 LONG = {"pick_place", "warehouse", "pickup", "pickup_bug", "pick_place_bug"}
 OPEN: dict[str, str] = {
+    "dispatch_fleet": "issue 31: the first free robot gets the next job, so the dispatcher's "
+                      "update reads every robot's acknowledgement and its shift counter; "
+                      "the properties' slices are not decided within 240 s",
     "agv_fleet": "issue 31: the dispatcher receives every AGV's status blocking, so each "
                  "property's slice is the whole net (seven agents, values tracked), not "
                  "explored within 120 s"}
@@ -111,6 +131,17 @@ TABLE: dict[str, tuple[str, bool, set[str], dict[str, bool]]] = {
         "never_locked_in_flight": False, "approach_ends_docked": False, "pad_freed": False}),
     "agv_fleet": ("VERIFIED", True, set(), {
         "charger_exclusive_1_2": True, "w6_gets_charger": True, "w3_gets_jobs": True}),
+    "dock": ("VERIFIED", True, set(), {
+        "tries_bounded": True, "no_give_up_while_charging": True, "request_answered": True,
+        "charging_ends": True}),
+    "dock_bug": ("VIOLATED", True, set(), {
+        "tries_bounded": True, "no_give_up_while_charging": False, "request_answered": True,
+        "charging_ends": True}),
+    "fleet_free": ("VERIFIED", True, set(), {
+        "r1_works_on_open_job": True, "job_acknowledged": True}),
+    "fleet2_bug": ("VIOLATED", True, set(), {
+        "r1_works_on_open_job": True, "job2_acknowledged": False, "job_acknowledged": True}),
+    "dispatch_fleet": ("VERIFIED", True, set(), {}),
 }
 
 

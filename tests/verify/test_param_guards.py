@@ -1,0 +1,37 @@
+"""A guard that reads only parameters and constants is decided, never a free choice, in
+the value-tracked nets the properties are checked on (the docs: parameters and constants
+are never abstracted). The trial of issue 32 found `switch report -> end when reported and
+work_time == 1` taken by a robot whose work_time is 2: a response property reported
+violated, and its replay "reproduced" with the switch forced against the data."""
+
+from __future__ import annotations
+
+import json
+import subprocess
+import sys
+from pathlib import Path
+
+import pytest
+
+ROOT = Path(__file__).resolve().parents[2]
+SPEC = ROOT / "tests" / "verify" / "specs" / "param_switch.rssm"
+
+
+@pytest.mark.parametrize(("quick", "holds"), [("false", True), ("true", False)])
+def test_a_guard_over_a_parameter_is_decided(tmp_path: Path, quick: str, holds: bool) -> None:
+    spec = tmp_path / "p.rssm"
+    spec.write_text(SPEC.read_text().replace("param quick: bool = false",
+                                             f"param quick: bool = {quick}"))
+    run = subprocess.run([sys.executable, "-m", "rssm_dsl", "verify", str(spec), "--format",
+                          "json"], capture_output=True, text=True, cwd=ROOT, timeout=300)
+    report = json.loads(run.stdout)
+    props = {p["name"]: p["holds"] for p in report["user_properties"]}
+    assert props == {"never_ends": holds, "stays": True}, report.get("why_undecided")
+    if not holds:      # its counterexample replays with no firing forced against the data
+        saved = tmp_path / "report.json"
+        saved.write_text(run.stdout)
+        replay = subprocess.run([sys.executable, "-m", "rssm_dsl", "simulate", str(spec),
+                                 "--replay", str(saved), "--format", "json"],
+                                capture_output=True, text=True, cwd=ROOT, timeout=300)
+        out = json.loads(replay.stdout)
+        assert out["replay"]["reproduced"] is True and out["replay"]["forced"] == 0, out
