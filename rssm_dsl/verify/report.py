@@ -586,6 +586,7 @@ def _conditions_text(r: VerifyReport) -> list[str]:
     if r.tracked_values:
         out.append(f"  values tracked in the state ({len(r.tracked_values)}): "
                    f"{', '.join(r.tracked_values)}")
+    if r.tracked_values or r.user_properties:      # the properties track their values too
         out.append(f"  {VALUES_ASSUMPTION}")
     if r.free_conditions:
         out.append(f"  abstracted as free choices (every outcome explored): "

@@ -35,3 +35,14 @@ def test_a_guard_over_a_parameter_is_decided(tmp_path: Path, quick: str, holds: 
                                 capture_output=True, text=True, cwd=ROOT, timeout=300)
         out = json.loads(replay.stdout)
         assert out["replay"]["reproduced"] is True and out["replay"]["forced"] == 0, out
+
+
+def test_a_report_with_properties_states_the_run_time_assumption() -> None:
+    """The properties track values, so their verdicts assume that no operation fails at run
+    time (a value out of its range is E802 in the interpreter): the report says so even
+    when safeness, deadlocks and progress tracked none (the trial's `tries: 0..2` with
+    three tries was VERIFIED without it)."""
+    run = subprocess.run([sys.executable, "-m", "rssm_dsl", "verify", str(SPEC)],
+                         capture_output=True, text=True, cwd=ROOT, timeout=300)
+    assert "values tracked in the state" not in run.stdout
+    assert "assuming no operation fails at run time (E802)" in run.stdout, run.stdout
