@@ -177,7 +177,12 @@ def test_built_nodes_carry_enums_and_check_ranges(ros_venv: toolchain.RosVenv, b
     c = events("a1.c")
     errors = [e for e in c if e["event"] == "error"]
     assert errors and all(e["code"] == "E802" and e["handled"] for e in errors), errors
-    assert any("value 4 is outside 0..3 of retries" in e["message"] for e in errors)
+    # the first value stored out of its range: `retries` past 3, or the command's record
+    # built with retries 3 (`slots: [retries, retries * 4]`, 12 past 0..11); which comes
+    # first depends on whether a fresh status arrived in that iteration (DDS timing: the
+    # interpreter has both, retries first)
+    assert {e["message"] for e in errors} <= {"value 4 is outside 0..3 of retries",
+                                             "value 12 is outside 0..11 of Grip.slots[1]"}, errors
     assert [(e["from"], e["to"]) for e in c if e["event"] == "switch"] == [("work", None)]
     received = [got["value"] for e in events("a1.e.hand") if e["event"] == "iteration"
                 for buffer, got in e["received"].items() if buffer == "phase_out"]
