@@ -83,7 +83,7 @@ def _agree(net: FlatNet, must_complete: bool = True) -> None:
 # here, does not end within its 120 s, so the case ended skipped after 145 s of the suite. The
 # compositional check of the fleet itself runs in `rssmc verify` (the fleets of
 # tests/verify/test_acceptance_specs.py); the other examples are this test's cases.
-LONG_EXAMPLES = {"fleet"}
+LONG_EXAMPLES = {"fleet", "handover_stall"}   # handover_stall: 18 s, the slowest of the rest
 
 
 @pytest.mark.parametrize("path", [pytest.param(p, marks=pytest.mark.long)

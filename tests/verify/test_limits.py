@@ -279,7 +279,7 @@ def test_the_reported_peak_is_the_whole_run_s() -> None:
     kernel measured for the process (the report said 198 MB of a 689 MB run)."""
     code = ("import json, resource, subprocess, sys\n"
             "out = subprocess.run([sys.executable, '-m', 'rssm_dsl', 'verify', sys.argv[1],\n"
-            "                      '--format', 'json', '--timeout', '20'],\n"
+            "                      '--format', 'json', '--timeout', '10'],\n"
             "                     capture_output=True, text=True).stdout\n"
             "kb = resource.getrusage(resource.RUSAGE_CHILDREN).ru_maxrss\n"
             "print(json.loads(out)['peak_memory_bytes'], kb * 1024)\n")
