@@ -115,7 +115,9 @@ def check_properties(net: FlatNet, system: System, plan: ValuePlan | None,
     results: dict[str, PropertyResult] = {}
     if small:
         _first_on_less(net, small, plan, budget, max_states, reduction, results)
-    for keep, whole_batch in batches.items():
+    # the smallest slices first: a property whose slice is the whole net does not spend
+    # the time of those decided on a few subsystems
+    for keep, whole_batch in sorted(batches.items(), key=lambda kv: len(kv[0])):
         batch = [(p, fs) for p, fs in whole_batch if p.name not in results]
         if not batch:
             continue
@@ -345,8 +347,18 @@ def _explore(net: FlatNet, keep: tuple[str, ...], formulas: list[Formula],
     if set(keep) != set(net.subsystems) and keep:
         # the border's channels whose value nothing here reads are dropped (slice_net)
         read = _tracked(net, plan, keys, keep)
-        sl = slice_net(net, keep, quiet=[c.name for c in channels(net)
-                                         if f"channel {c.name}" not in read],
+        quiet = [c.name for c in channels(net) if f"channel {c.name}" not in read]
+        if plan is not None:
+            # and what the slice itself reads of its free channels inside, kept whole: the
+            # whole net's guards may read more than its transitions can track (a
+            # dispatcher's transition function reading every robot's value), where the
+            # slice's, with the rest left unknown, need only what decides them
+            inside = [c.name for c in channels(net) if c.free and c.producer in keep
+                      and c.consumer in keep and f"channel {c.name}" not in read]
+            if inside:
+                whole = slice_net(net, keep, quiet=quiet, uncut=inside, env_new=True)
+                read = read | tracked_labels(track_new(whole.net), plan, keys, keep)
+        sl = slice_net(net, keep, quiet=[c for c in quiet if f"channel {c}" not in read],
                        uncut=[c.name for c in channels(net) if f"channel {c.name}" in read],
                        env_new=True)
     base = sl.net if sl is not None else net
@@ -457,9 +469,13 @@ def _judge(net: FlatNet, prop: Property, formulas: list[Formula], ex: _Explored,
         return PropertyResult(prop.name, prop.kind, _text(prop), False, cx,
                               f"violated ({states})", prop.span, graph.size)
     if unknown.any():
+        missing = _untracked(formulas, tracked.net)
+        what = (f"{', '.join(missing)}, which the verifier does not track there (docs/verify.md, "
+                f"\"How values are tracked\")" if missing
+                else "a value the verifier does not track")
         return PropertyResult(prop.name, prop.kind, _text(prop), None, None,
-                              f"not decided: it reads a value the verifier does not track "
-                              f"in {int(unknown.sum()):,} of {states}", prop.span, graph.size)
+                              f"not decided: it reads {what}, unknown in "
+                              f"{int(unknown.sum()):,} of {states}", prop.span, graph.size)
     return PropertyResult(prop.name, prop.kind, _text(prop), True, None, f"holds ({states})",
                           prop.span, graph.size)
 
@@ -794,6 +810,14 @@ def _truth(f: Formula, graph: Graph, net: FlatNet) -> tuple[Any, Any]:
     value = np.array([r is True for r in results])[inverse.reshape(-1)]
     unknown = np.array([r is None for r in results])[inverse.reshape(-1)]
     return value, unknown
+
+
+def _untracked(formulas: list[Formula], net: FlatNet) -> list[str]:
+    """The values the formulas read that ``net`` does not carry, in the user's words."""
+    have = {p.channel for p in net.places if p.channel is not None}
+    return sorted({f"{a.subsystem_id}.{a.variable_name}" for f in formulas for a in f.atoms
+                   if isinstance(a, Value)
+                   and f"value {a.subsystem_id}.{a.variable_name}" not in have})
 
 
 def _domain_of(a: Value, labels: list[str]) -> tuple[Any, ...]:

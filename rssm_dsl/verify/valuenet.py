@@ -30,7 +30,7 @@ from __future__ import annotations
 
 import dataclasses
 import itertools
-from collections.abc import Collection, Mapping
+from collections.abc import Callable, Collection, Mapping
 from typing import Any
 
 from rssm_dsl.hpn.flat import FlatNet, FlatPlace, FlatTransition
@@ -85,22 +85,37 @@ class _Values:
     def cone(self, present: set[str], extra: frozenset[str] = frozenset(),
              within: Collection[str] | None = None) -> set[str]:
         """The values the guards (and ``extra``) depend on, directly or through what is
-        computed from them; only the guards of the subsystems ``within`` when given."""
+        computed from them; only the guards of the subsystems ``within`` when given.
+
+        Only the values that can be known count (``knowable``: not those every write leaves
+        unknown, as a border channel's slot that a slice's environment fills), and of what a
+        guard or a write reads only what can change its outcome once the rest is left
+        unknown (``_Relevance``): in a slice of a dispatcher and one robot, the
+        dispatcher's `all_done when ack1 == job1 and ack2 == job2 ...` cannot be decided
+        by job2 while ack2 comes from outside, so job2 is not tracked for it, nor the
+        whole fleet's values behind it."""
         net = self.t.net
-        want = {r for u, s in self.steps.items() if s.holds is not None
-                and (within is None or net.transitions[u].subsystem in within)
-                for r in s.reads if r in present} | (extra & present)
         writers: dict[str, list[Step]] = {}
         for s in self.steps.values():
             for w in s.writes:
                 writers.setdefault(w, []).append(s)
-        todo = list(want)
+        knowable = self._determined(set(present), writers)
+        rel = _Relevance(self.plan, knowable)
+        want = {r for u, s in self.steps.items() if s.holds is not None
+                and (within is None or net.transitions[u].subsystem in within)
+                for r in rel.of_guard(s)} | (extra & knowable)
+        # how far each value is from what the property reads, through what computes it
+        near = _distances(extra & knowable, writers, rel)
+        # breadth first, so that each value knows how far it is from what is asked
+        far = dict.fromkeys(want, 0)
+        todo = sorted(want)
         while todo:
-            x = todo.pop()
+            x = todo.pop(0)
             for s in writers.get(x, []):
-                for r in s.reads if s.deps is None else s.deps.get(x, s.reads):
-                    if r in present and r not in want:
+                for r in rel.of_write(s, x):
+                    if r not in want:
                         want.add(r)
+                        far[r] = far[x] + 1
                         todo.append(r)
         # a value nothing writes... is still read; a value with a writer outside the plan
         # (e.g. an untracked producer) is written by none of the steps: it stays constant,
@@ -117,8 +132,13 @@ class _Values:
                     if sum(_size(s, want, doms) for s in ss) > MAX_VALUATIONS]
             if not over:
                 break
+            # what the property reads goes last, then what computes it, the nearest last
+            # (a dispatcher's counter that decides the robot's job before the other
+            # robots' values that decide the counter); else what is furthest from the
+            # guards and the property, the largest domain first
             drop = max((x for s in over[0] for x in (*s.reads, *s.writes) if x in want),
-                       key=lambda x: len(doms[x].domain))
+                       key=lambda x: (x not in extra, near.get(x, _FAR), far.get(x, 0),
+                                      len(doms[x].domain)))
             want.discard(drop)
         return self._determined(want, writers)
 
@@ -132,6 +152,105 @@ class _Values:
             if not free:
                 return want
             want -= free
+
+
+def _distances(start: Collection[str], writers: Mapping[str, list[Step]],
+               rel: _Relevance) -> dict[str, int]:
+    """Each value's distance from ``start``: the steps computing a value, what they read
+    that can change it, and so on."""
+    out = dict.fromkeys(start, 0)
+    todo = sorted(start)
+    while todo:
+        x = todo.pop(0)
+        for s in writers.get(x, []):
+            for r in rel.of_write(s, x):
+                if r not in out:
+                    out[r] = out[x] + 1
+                    todo.append(r)
+    return out
+
+
+_FAR = 1 << 30
+
+
+class _Relevance:
+    """What a step reads that can change what it does, the values outside ``knowable``
+    left unknown: for a guard, its truth (true, false or unknown); for a written value,
+    what each outcome writes there. A read is relevant when two valuations that differ in
+    it alone give different answers; every valuation of the knowable reads is tried when
+    there are at most ``RELEVANCE_VALUATIONS`` of them, else every read counts (as
+    written). Tracking fewer values only leaves more of them unknown, which every engine
+    explores as any value: this decides precision, never soundness."""
+
+    def __init__(self, plan: ValuePlan, knowable: set[str]) -> None:
+        self.doms = plan.vars
+        self.knowable = knowable
+        # per step: its knowable reads and, per valuation of them, its outcomes
+        self._runs: dict[int, tuple[list[str], dict[tuple[Any, ...], Any]] | None] = {}
+
+    def of_guard(self, s: Step) -> tuple[str, ...]:
+        assert s.holds is not None
+        holds = s.holds
+        return self._relevant(s, [r for r in s.reads if r in self.knowable],
+                              lambda val, _: holds(val))
+
+    def of_write(self, s: Step, x: str) -> tuple[str, ...]:
+        deps = s.reads if s.deps is None else s.deps.get(x, s.reads)
+        keys = [r for r in deps if r in self.knowable]
+        if x not in s.writes or len(keys) <= 1:
+            return tuple(keys)
+        found = self._relevant(s, [r for r in s.reads if r in self.knowable], lambda val, outs: (
+            _UNDECIDED if outs is None else tuple(
+                _outcome_key(o.get(x, val.get(x, ANY))) for o in outs)))
+        return tuple(k for k in found if k in keys)
+
+    def _relevant(self, s: Step, keys: list[str],
+                  answer: Callable[[dict[str, Any], Any], Any]) -> tuple[str, ...]:
+        if len(keys) <= 1:
+            return tuple(keys)
+        total = 1
+        for k in keys:
+            total *= len(self.doms[k].domain)
+        if total > RELEVANCE_VALUATIONS:
+            return tuple(keys)
+        rows: list[tuple[tuple[Any, ...], Any]] = []
+        for val in valuations(keys, {k: self.doms[k].domain for k in keys}):
+            try:
+                a = answer(val, self._run(s, val) if s.writes else None)
+            except Exception:              # unknown here: an answer of its own
+                a = _UNDECIDED
+            rows.append((tuple(_outcome_key(val[k]) for k in keys), a))
+        out: list[str] = []
+        for i, k in enumerate(keys):
+            seen: dict[tuple[Any, ...], Any] = {}
+            for row, a in rows:
+                if seen.setdefault(row[:i] + row[i + 1:], a) != a:
+                    out.append(k)
+                    break
+        return tuple(out)
+
+    def _run(self, s: Step, val: dict[str, Any]) -> Any:
+        try:
+            return s.run(val)
+        except Exception:
+            return None
+
+
+RELEVANCE_VALUATIONS = 8192     # per step: beyond, every read counts as relevant
+_UNDECIDED = ("undecided",)
+
+
+def _outcome_key(v: Any) -> Any:
+    """A hashable stand-in for a value an outcome writes (ANY, a domain's value)."""
+    if v is ANY:
+        return ("any",)
+    if isinstance(v, bool):
+        return ("bool", v)
+    try:
+        hash(v)
+    except TypeError:
+        return ("repr", repr(v))
+    return (type(v).__name__, v)
 
 
 def _determines(s: Step, x: str, want: set[str], doms: Mapping[str, Any]) -> bool:
