@@ -25,7 +25,15 @@ from rssm_dsl.semantics.model import (
     Switch,
 )
 from rssm_dsl.semantics.structure import Shell
-from rssm_dsl.semantics.typecheck import ExprChecker, Scope, Symbol, did_you_mean, owner_symbols
+from rssm_dsl.semantics.typecheck import (
+    ExprChecker,
+    Scope,
+    Symbol,
+    did_you_mean,
+    guess_hint,
+    mismatch_hint,
+    owner_symbols,
+)
 from rssm_dsl.semantics.types import BOOL, Type, assignable
 from rssm_dsl.source import Span
 from rssm_dsl.syntax import ast
@@ -364,7 +372,7 @@ class BehaviourPass:
         if sym is None:
             guess = did_you_mean(root.name, scope.names)
             self.bag.error("E102", f"'{root.name}' is not declared here", root.span,
-                           f"did you mean '{guess}'?" if guess else None)
+                           guess_hint(guess, scope, root.span) if guess else None)
             self.checker.check(stmt.value, scope)
             return
         allowed = (sym.kind == "memory") if target == MEMORY else (
@@ -396,7 +404,7 @@ class BehaviourPass:
         got = self.checker.check(stmt.value, scope, lt)
         if got is not None and not assignable(got, lt):
             self.bag.error("E201", f"cannot assign {got} to '{root.name}' of type {lt}",
-                           stmt.value.span)
+                           stmt.value.span, hint=mismatch_hint(got, lt))
         elif got is not None:
             self.checker.fits(stmt.value, lt, expr_text(stmt.target))
 

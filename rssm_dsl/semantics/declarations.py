@@ -17,6 +17,7 @@ from rssm_dsl.semantics.typecheck import (
     Scope,
     Symbol,
     did_you_mean,
+    mismatch_hint,
 )
 from rssm_dsl.semantics.types import (
     SCALARS,
@@ -234,7 +235,7 @@ class DeclarationPass:
             return
         if want is not None and not assignable(got, want):
             self.bag.error("E201", f"const '{d.name}' is declared {want} but its value is {got}",
-                           d.value.span)
+                           d.value.span, hint=mismatch_hint(got, want))
             self._broken_const(d)
             return
         if want is not None:

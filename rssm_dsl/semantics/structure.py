@@ -9,7 +9,7 @@ from rssm_core.records import dataclass
 from rssm_dsl.diagnostics import DiagnosticBag, Related
 from rssm_dsl.semantics.declarations import DeclarationPass, Globals
 from rssm_dsl.semantics.model import DEVICE_LETTER, KIND_LETTER, Buffer, Variable
-from rssm_dsl.semantics.typecheck import ExprChecker, Scope, Symbol, did_you_mean
+from rssm_dsl.semantics.typecheck import ExprChecker, Scope, Symbol, did_you_mean, mismatch_hint
 from rssm_dsl.semantics.types import Type, assignable
 from rssm_dsl.source import Span
 from rssm_dsl.syntax import ast
@@ -138,7 +138,8 @@ class StructurePass:
         """Check the initial value of a variable or buffer (``what``: "memory 'x'")."""
         got = self.checker.check(init, scope, t)
         if got is not None and not assignable(got, t):
-            self.bag.error("E201", f"{what} is {t} but its initial value is {got}", init.span)
+            self.bag.error("E201", f"{what} is {t} but its initial value is {got}", init.span,
+                           hint=mismatch_hint(got, t))
         elif got is not None:
             self.checker.fits(init, t, what)
 

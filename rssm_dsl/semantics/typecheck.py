@@ -65,6 +65,19 @@ def did_you_mean(name: str, candidates: Iterable[str] | Callable[[], Iterable[st
     return close[0] if close else None
 
 
+def guess_hint(guess: str, scope: Scope, at: Span) -> str:
+    """"did you mean" for a name, with where the proposed name is declared: when the
+    declaration is the misspelt one (every use says `status`, the input says `stauts`),
+    the fix is there, not at the uses."""
+    sym = scope.lookup(guess)
+    if sym is None or sym.kind in ("const", "extern", "enum", "condition") or not sym.span.line:
+        return f"did you mean '{guess}'?"
+    where = (f"line {sym.span.line}" if sym.span.file == at.file
+             else f"{sym.span.file}:{sym.span.line}")
+    return (f"did you mean '{guess}'? ({sym.kind} '{guess}' is declared at {where}: if that "
+            f"declaration is the misspelt name, correct it there)")
+
+
 @dataclass(frozen=True)
 class Symbol:
     kind: str   # const | extern | param | memory | input | output | local | condition | enum
@@ -218,7 +231,8 @@ class ExprChecker:
     def expect(self, e: ast.Expr, scope: Scope, want: Type, what: str) -> None:
         got = self.check(e, scope, want)
         if got is not None and not assignable(got, want):
-            self.bag.error("E201", f"{what} must be {want}, not {got}", e.span)
+            self.bag.error("E201", f"{what} must be {want}, not {got}", e.span,
+                           hint=mismatch_hint(got, want))
         elif got is not None:
             self.fits(e, want, what)
 
@@ -266,7 +280,7 @@ class ExprChecker:
                 return BUILTIN_CONSTS[e.name][0]
             guess = did_you_mean(e.name, scope.names)
             self.bag.error("E102", f"'{e.name}' is not declared here", e.span,
-                           f"did you mean '{guess}'?" if guess
+                           guess_hint(guess, scope, e.span) if guess
                            else "declare it as memory, param, a buffer or a const")
             return None
         scope.reads.add(e.name)
@@ -544,3 +558,19 @@ class ExprChecker:
         while isinstance(target, ast.FieldAccess | ast.Index):
             target = target.value
         return target if isinstance(target, ast.Name) else None
+
+
+def mismatch_hint(got: Type, want: Type) -> str:
+    """What to do about a value of type ``got`` where ``want`` is needed (E201)."""
+    if want == BOOL:
+        return ("write a condition: a comparison (`x > 0`, `mode == Mode.ready`), or "
+                f"`and`/`or`/`not` of conditions; a {got} is not a bool")
+    if got == BOOL:
+        return f"a bool is not a number: write `if COND then A else B` to get a {want}"
+    if got == FLOAT and (want == INT or isinstance(want, RangeT)):
+        return ("there is no conversion from float to int (`floor` and `ceil` return floats): "
+                "compute the value in ints, or declare the target float")
+    if isinstance(want, EnumT) or isinstance(got, EnumT):
+        return (f"write a value of the declared type ({want}), e.g. a member `Type.member` of "
+                "an enum, or change the declaration")
+    return f"write a value of type {want}, or change the declaration"

@@ -242,3 +242,34 @@ def test_switching_on_the_members_of_an_enum(tmp_path: Path) -> None:
     negated = ("      switch a -> a when phase != Phase.grasp\n"
                "      switch a -> end when phase == Phase.grasp\n")
     assert _switching(tmp_path, negated) == []
+
+
+@pytest.mark.parametrize(("body", "advice"), [
+    ("slot := 2.5", "no conversion from float to int"),     # float into a range
+    ("n := 2.5", "no conversion from float to int"),        # float into an int
+    ("b := slot", "write a condition"),                     # a number where a bool is
+    ("b := phase", "write a condition"),                    # an enum where a bool is
+    ("n := b", "a bool is not a number"),                   # a bool where a number is
+    ("phase := 1", "a member `Type.member`"),               # a number where an enum is
+])
+def test_a_type_mismatch_says_what_to_write(tmp_path: Path, body: str, advice: str) -> None:
+    """E201 carries a help line chosen by the two types (the acceptance trial of issue 32
+    met an E201 with no advice)."""
+    comp = _compile(tmp_path, PHASE, "      memory phase: Phase\n      memory slot: 0..3\n"
+                    "      memory n: int\n      memory b: bool",
+                    f"          {body}", "phase == Phase.idle and slot > n and b")
+    (d,) = [d for d in comp.diagnostics if d.code == "E201"]
+    assert d.hint is not None and advice in d.hint, d.hint
+
+
+def test_did_you_mean_says_where_the_proposed_name_is_declared(tmp_path: Path) -> None:
+    """A typo in the declaration makes every correct use an unknown name: "did you mean"
+    proposes the misspelt declaration, so the hint says where it is and that the fix may be
+    there (the acceptance trial of issue 32)."""
+    comp = _compile(tmp_path, PHASE, "      memory stauts: 0..3\n      memory phase: Phase",
+                    "          status := status + 1", "phase == Phase.idle")
+    hints = [d.hint for d in comp.diagnostics if d.code == "E102"]
+    assert len(hints) == 2, [str(d) for d in comp.diagnostics]     # the target and the read
+    for h in hints:
+        assert h is not None and "did you mean 'stauts'?" in h
+        assert "memory 'stauts' is declared at line" in h and "correct it there" in h, h
