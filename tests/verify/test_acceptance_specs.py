@@ -69,8 +69,9 @@ docs/patterns.md, a planted bug):
   a guard over parameters only was a free choice in the value-tracked net (fixed:
   rssm_dsl/verify/valuenet.py decides it);
 - dispatch_fleet: the dispatcher hands a shift of jobs to the first free robot, one per
-  iteration: VERIFIED by hand; the properties' slices are not decided within the limits
-  (a long case, a strict expected failure)."""
+  iteration: VERIFIED by hand; three properties hold, `no_work_while_restocking` (every
+  robot, the whole net) is not decided within the limits (a long case, a strict expected
+  failure)."""
 
 from __future__ import annotations
 
@@ -93,9 +94,11 @@ LIMITS = {"fleet": "60", "warehouse": "180", "pick_place": "300", "fleet_busy": 
 LONG = {"pick_place", "warehouse", "pickup", "pickup_bug", "pick_place_bug",
         "fleet_free"}   # fleet_free: 8.5 s; its fast variant is fleet2_bug, the same robots
 OPEN: dict[str, str] = {
-    "dispatch_fleet": "issue 31: the first free robot gets the next job, so the dispatcher's "
-                      "update reads every robot's acknowledgement and its shift counter; "
-                      "the properties' slices are not decided within 240 s",
+    "dispatch_fleet": "issue 31: three of its four properties hold (r1's on the slice of the "
+                      "dispatcher and r1); no_work_while_restocking names every robot, and "
+                      "the dispatcher's `all_done` reads all twelve of their values in one "
+                      "transition (more variants than a transition may have): not decided "
+                      "in the whole net within 240 s",
     "agv_fleet": "issue 31: the dispatcher receives every AGV's status blocking, so each "
                  "property's slice is the whole net (seven agents, values tracked), not "
                  "explored within 120 s"}
