@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import contextlib
+import difflib
 import os
 import stat
 import tempfile
@@ -71,9 +72,13 @@ def fmt(
                                                 show_default=False)],
     check: Annotated[bool, typer.Option("--check", help="Write nothing; exit 1 if a file "
                                         "would change.")] = False,
+    diff: Annotated[bool, typer.Option("--diff", help="Write nothing; print what would "
+                                       "change as a unified diff on stdout (exit 1 if a file "
+                                       "would change, as --check).")] = False,
 ) -> None:
     """Format specifications with the canonical layout (comments are kept). Files are
-    rewritten in place; with --check, nothing is written and the exit code tells."""
+    rewritten in place; with --check or --diff, nothing is written and the exit code
+    tells (--diff also shows the changes)."""
 
     def run() -> int:
         from rssm_dsl.diagnostics import DiagnosticBag
@@ -102,7 +107,13 @@ def fmt(
                 continue
             if result.text == source.text:
                 continue
-            if check:
+            if check or diff:
+                if diff:
+                    shown = display_path(path)
+                    typer.echo("".join(difflib.unified_diff(
+                        source.text.splitlines(keepends=True),
+                        result.text.splitlines(keepends=True),
+                        f"{shown} (as it is)", f"{shown} (formatted)")), nl=False)
                 typer.echo(f"{display_path(path)}: would be reformatted", err=True)
                 code = max(code, EXIT_ERRORS)
             else:

@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import re
+import shutil
 import subprocess
 import sys
 from pathlib import Path
@@ -229,6 +230,38 @@ def test_fmt_command_check_and_write(tmp_path: Path) -> None:
     assert failed.returncode == 1 and "E007" in failed.stderr
     assert broken.read_text(encoding="utf-8") == "system s {"
     assert rssmc(str(tmp_path / "missing.rssm")).returncode == 2
+
+
+def test_fmt_diff_shows_the_change_and_writes_nothing(tmp_path: Path) -> None:
+    """`fmt --diff` prints a unified diff that turns the file into its formatted text,
+    writes nothing, and exits as --check (the acceptance trial of issue 32: --check
+    showed no change)."""
+    messy = tmp_path / "messy.rssm"
+    messy.write_text(MESSY, encoding="utf-8")
+    clean = tmp_path / "clean.rssm"
+    clean.write_text(CANONICAL, encoding="utf-8")
+    run = subprocess.run([sys.executable, "-m", "rssm_dsl", "fmt", "--diff", str(messy),
+                          str(clean)], capture_output=True, text=True, cwd=tmp_path, timeout=60)
+    assert run.returncode == 1 and "messy.rssm: would be reformatted" in run.stderr
+    assert messy.read_text(encoding="utf-8") == MESSY
+    assert "clean.rssm" not in run.stdout              # an unchanged file shows nothing
+    # the diff, applied to the file, gives the formatted text
+    patch = shutil.which("patch")
+    if patch is not None:
+        applied = subprocess.run([patch, "-s", "-o", str(tmp_path / "out.rssm"), str(messy)],
+                                 input=run.stdout, capture_output=True, text=True, timeout=60)
+        assert applied.returncode == 0, applied.stderr
+        assert (tmp_path / "out.rssm").read_text(encoding="utf-8") == CANONICAL
+    removed = [ln[1:] for ln in run.stdout.splitlines(keepends=True)
+               if ln.startswith("-") and not ln.startswith("---")]
+    added = [ln[1:] for ln in run.stdout.splitlines(keepends=True)
+             if ln.startswith("+") and not ln.startswith("+++")]
+    assert removed and added
+    assert all(line in MESSY.splitlines(keepends=True) for line in removed)
+    assert all(line in CANONICAL.splitlines(keepends=True) for line in added)
+    ok = subprocess.run([sys.executable, "-m", "rssm_dsl", "fmt", "--diff", str(clean)],
+                        capture_output=True, text=True, cwd=tmp_path, timeout=60)
+    assert ok.returncode == 0 and ok.stdout == ""
 
 
 def test_bare_cr_line_ends_format_like_lf() -> None:
