@@ -4,6 +4,7 @@ from __future__ import annotations
 
 import contextlib
 import difflib
+import io
 import os
 import stat
 import tempfile
@@ -110,9 +111,11 @@ def fmt(
             if check or diff:
                 if diff:
                     shown = display_path(path)
+                    # lines as the file has them (split at LF only: the compiler never
+                    # splits source text with str.splitlines, which breaks at more)
                     typer.echo("".join(difflib.unified_diff(
-                        source.text.splitlines(keepends=True),
-                        result.text.splitlines(keepends=True),
+                        io.StringIO(source.text).readlines(),
+                        io.StringIO(result.text).readlines(),
                         f"{shown} (as it is)", f"{shown} (formatted)")), nl=False)
                 typer.echo(f"{display_path(path)}: would be reformatted", err=True)
                 code = max(code, EXIT_ERRORS)

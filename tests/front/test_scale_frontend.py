@@ -91,7 +91,7 @@ def test_overlapping_switches_are_reported_once_per_switch(tmp_path: Path) -> No
         # the k-th switch after the first overlaps the k switches before it: it names the
         # first (the one taken) and counts the others
         assert d.related[0].span == first
-        assert d.message.startswith("switches from 'b' overlap when 'done' ended it: both "
+        assert d.message.startswith("switches from 'b' of a1.c overlap when 'done' ended it: both "
                                     "hold, and the one declared first is taken")
         assert d.message.endswith(
             "taken" if k == 1 else
@@ -102,7 +102,7 @@ def test_overlapping_switches_are_reported_once_per_switch(tmp_path: Path) -> No
 def test_two_overlapping_switches_keep_their_warning(tmp_path: Path) -> None:
     [d] = _compile(tmp_path, overlapping_switches_system(2)).diagnostics
     assert d.code == "W604"
-    assert d.message == ("switches from 'b' overlap when 'done' ended it: both hold, and the "
+    assert d.message == ("switches from 'b' of a1.c overlap when 'done' ended it: both hold, and the "
                          "one declared first is taken")
     assert d.related[0].message == "this switch also holds, and is declared first: it is taken"
 

@@ -76,3 +76,42 @@ ONE_END = ["terminal done when y > 2"]
 def test_switch_conditions_read_as_one_atom(terminals: list[str], switches: list[str],
                                             want: list[str], tmp_path: Path) -> None:
     assert codes(tmp_path, terminals, switches) == want
+
+
+def test_a_parameter_rules_an_overlap_out_per_instance(tmp_path: Path) -> None:
+    """W604 with the parameters' values: `when reported and work_time == 1` overlaps the
+    switch after it only in the instance whose work_time is 1, and the warning names it
+    (the acceptance trial of issue 32 got "(and in 5 more instances of Robot)" for a
+    parameter ruling the overlap out in those five)."""
+    spec = tmp_path / "robots.rssm"
+    spec.write_text("""agent Robot(work_time: 1..3 = 2, quick: bool = false) {
+  control @ 10 Hz {
+    memory worked: 0..3 = 0
+    behaviour work {
+      update memory { worked := worked + 1 }
+      terminal finished when worked >= work_time
+    }
+    behaviour report {
+      terminal reported when true
+    }
+    initial work
+    switch work -> report when finished
+    switch report -> end when reported and work_time == 1
+    switch report -> work when reported and not quick
+    switch report -> end when reported
+  }
+}
+system s {
+  agent r[1..4]: Robot()
+  agent r5: Robot(work_time = 1)
+  agent r6: Robot(quick = true)
+}
+""")
+    comp = compile_file(spec)
+    w604 = sorted((d.span.line, d.message) for d in comp.diagnostics if d.code == "W604")
+    # line 14 (`not quick`) overlaps line 13 in r5 only; line 15 overlaps line 14 where
+    # quick is false (r1-r5: r1's warning, and 4 more) and line 13 in r5
+    assert [line for line, _ in w604] == [14, 15], w604
+    assert "of r5.c overlap" in w604[0][1] and "more instance" not in w604[0][1], w604[0]
+    assert "of r1.c overlap" in w604[1][1] and "(and in 4 more instances of Robot)" in \
+        w604[1][1], w604[1]

@@ -82,6 +82,56 @@ def _abstract(e: ast.Expr, conds: dict[str, tuple[str, bool]], parts: Parts) -> 
     return F("atom", (text,))
 
 
+def _fixed_params(s: Subsystem) -> dict[str, object]:
+    """The parameters whose value is a literal (an instance's argument, or the default),
+    by name."""
+    out: dict[str, object] = {}
+    for p in s.params:
+        init, sign = p.init, 1
+        if isinstance(init, ast.Unary) and init.op == "-":
+            init, sign = init.operand, -1
+        if isinstance(init, ast.Literal) and isinstance(init.value, bool | int | float):
+            if isinstance(init.value, bool):
+                if sign == 1:
+                    out[p.name] = init.value
+            else:
+                out[p.name] = sign * init.value
+    return out
+
+
+def _by_params(space: _Space, atoms: set[str], parts: Parts,
+               fixed: Mapping[str, object]) -> int:
+    """The assignments that agree with the parameters' values: an atom that compares
+    parameters and literals (`work_time == 1`), or is a bool parameter, has one value."""
+    def value(text: str) -> object:
+        if text in fixed:
+            return fixed[text]
+        if text in ("true", "false"):
+            return text == "true"
+        try:
+            return int(text)
+        except ValueError:
+            pass
+        try:
+            return float(text)
+        except ValueError:
+            return None
+
+    agree = space.full
+    for atom in atoms:
+        truth: object = None
+        if atom in parts:
+            left, op, right = parts[atom]
+            a, b = value(left), value(right)
+            if a is not None and b is not None and isinstance(a, bool) == isinstance(b, bool):
+                truth = {"==": a == b, "<": a < b, "<=": a <= b}.get(op)  # type: ignore[operator]
+        elif isinstance(fixed.get(atom), bool):
+            truth = fixed[atom]
+        if isinstance(truth, bool):
+            agree &= space.literal((atom, not truth))
+    return agree
+
+
 def _key(op: str, a: ast.Expr, b: ast.Expr, parts: Parts) -> tuple[str, bool]:
     """The atom of the comparison `a op b`, and whether the comparison is its negation: the
     operands in one order (a literal on the right, else by their text; `1 < x` is `x > 1`),
@@ -299,7 +349,11 @@ def _check_behaviour(ctx: CheckContext, s: Subsystem, b: Behaviour,
         for _, m in explicit:
             covered |= m
         _report_missing(ctx, s, b, valid & ~covered, when)
-    _report_overlaps(ctx, b, formulas, explicit, when)
+    # the overlaps where the parameters have their values: a switch a parameter rules out
+    # in this subsystem (`when reported and work_time == 1`, work_time 2) overlaps nothing
+    agree = _by_params(space, atoms, parts, _fixed_params(s))
+    explicit = [(i, m & agree) for i, m in explicit]
+    _report_overlaps(ctx, s, b, formulas, explicit, when)
 
 
 def _report_missing(ctx: CheckContext, s: Subsystem, b: Behaviour, missing: int,
@@ -315,7 +369,8 @@ def _report_missing(ctx: CheckContext, s: Subsystem, b: Behaviour, missing: int,
                   f"add `switch {b.name} -> NEXT otherwise` or cover these cases")
 
 
-def _report_overlaps(ctx: CheckContext, b: Behaviour, formulas: list[tuple[Switch, F | None]],
+def _report_overlaps(ctx: CheckContext, s: Subsystem, b: Behaviour,
+                     formulas: list[tuple[Switch, F | None]],
                      explicit: list[tuple[int, int]], when: Callable[[int], str]) -> None:
     """W604 once per switch that may hold with switches declared before it: naming the
     first of them (it is taken), with the count of the others. Switches with the same
@@ -337,7 +392,7 @@ def _report_overlaps(ctx: CheckContext, b: Behaviour, formulas: list[tuple[Switc
         if first is None:
             continue
         more = others - 1
-        ctx.bag.warn("W604", f"switches from '{b.name}' overlap "
+        ctx.bag.warn("W604", f"switches from '{b.name}' of {s.id} overlap "
                      f"{when(next(_bits(masks[first] & mask)))}: both hold, "
                      "and the one declared first is taken" + (
                          f" (this switch also overlaps {more} other switch"
