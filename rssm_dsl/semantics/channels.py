@@ -35,6 +35,8 @@ _TALKS_TO = {
     "r": "a virtual receptor talks to its agent's control subsystem and real receptors",
 }
 
+SHOWN_CANDIDATES = 4     # E306 names this many of the buffers that could match
+
 
 @dataclass(frozen=True)
 class _Pointing:
@@ -268,7 +270,9 @@ class ChannelPass:
             )
             return None
         if len(candidates) > 1:
-            names = ", ".join(b.name for b in candidates)
+            names = ", ".join(b.name for b in candidates[:SHOWN_CANDIDATES]) + (
+                f" and {len(candidates) - SHOWN_CANDIDATES} more"
+                if len(candidates) > SHOWN_CANDIDATES else "")
             self.bag.error("E306", f"several buffers of {peer.id} could match '{buf.name}': "
                            f"{names}", ref.span, _which(ref, buf, candidates, peer))
             return None

@@ -369,3 +369,15 @@ def test_the_bag_is_not_rescanned(monkeypatch: pytest.MonkeyPatch) -> None:
     assert not _errors_since(bag, mark)
     bag.error("E503", "z", at)
     assert _errors_since(bag, mark)
+
+
+def test_e306_names_a_few_candidates_and_counts_the_rest(tmp_path: Path) -> None:
+    """A device with many inputs: the message names the first four and counts the others
+    (the trial of issue 32 met a message listing every one)."""
+    many = E306.replace("  input grip: bool nonblocking\n",
+                        "  input grip: bool nonblocking\n  input tilt: float nonblocking\n"
+                        "  input spin: float nonblocking\n")
+    comp = _compile(tmp_path, many.replace("TYPE", "bool").replace("VALUE", "true"))
+    [e] = [d for d in comp.diagnostics if d.code == "E306"]
+    assert e.message == ("several buffers of a1.E.hand could match 'cmd': width, closed, "
+                         "force, grip and 2 more")
