@@ -577,7 +577,8 @@ def render_text(report: VerifyReport, max_invariants: int = 20) -> str:
 def _conditions_text(r: VerifyReport) -> list[str]:
     """How the conditions on data were explored: new(x) of the data cases tracked in the
     state; every other condition a free choice, listed."""
-    if not r.new_tracked_cases and not r.free_conditions and not r.tracked_values:
+    if not (r.new_tracked_cases or r.free_conditions or r.tracked_values
+            or r.user_properties):
         return []
     out = ["", "conditions on data:"]
     if r.new_tracked_cases:

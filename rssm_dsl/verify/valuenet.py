@@ -275,15 +275,18 @@ def _size(s: Step, want: set[str], doms: Mapping[str, Any]) -> int:
 
 
 def track_values(t: TrackedNet, plan: ValuePlan | None,
-                 extra: frozenset[str] = frozenset()) -> TrackedNet:
+                 extra: frozenset[str] = frozenset(), values: bool = True) -> TrackedNet:
     """``t`` with the values of ``plan`` in its places (the module docstring), and the
     values ``extra`` (keys of ``plan.vars``: those a property reads); ``t`` itself when no
-    guard depends on a value this net can track."""
+    guard depends on a value this net can track. With ``values`` false, no value: only the
+    guards that read parameters and constants alone are decided (the pass with the
+    conditions as free choices: a parameter is never abstracted)."""
     if plan is None:
         return t
     v = _Values(t, plan)
-    cone = v.cone(v.present(), extra)
-    if not cone:
+    cone = v.cone(v.present(), extra) if values else set()
+    if not cone and not any(s.holds is not None and not s.reads and s.holds({}) is not None
+                            for s in v.steps.values()):
         return t
     net = t.net
     places: list[FlatPlace] = list(net.places)

@@ -104,6 +104,8 @@ class VerifyOptions:
     slice_after_states: int = 200_000    # ... when the whole net has more states than this
     slice_after_seconds: float = 0.75    # ... or takes longer to explore
     values: ValuePlan | None = None      # the finite values to track (dataplan.value_plan)
+    guards: ValuePlan | None = None      # without values: the guards over parameters alone
+    #                                      decided (the pass with the free choices)
     fairness: str = "strong"             # progress: "strong" or "weak" (report.FAIRNESS)
     values_first: bool = True            # ... only once the conditions as free choices
     #                                      gave a violation (verify_with_values)
@@ -171,9 +173,11 @@ def verify(net: FlatNet, options: VerifyOptions | None = None) -> VerifyReport:
     # new(x) and the finite values in the net's places (datanet.py, valuenet.py), the report
     # told back in net's words
     with _named(opts.budget, "the data tracking"):
-        tracked = track_values(track_new(net), opts.values)
+        tracked = (track_values(track_new(net), opts.values) if opts.values is not None
+                   else track_values(track_new(net), opts.guards, values=False))
     if tracked.changed:
-        return tracked.report(verify(tracked.net, dataclasses.replace(opts, values=None)))
+        return tracked.report(verify(tracked.net, dataclasses.replace(opts, values=None,
+                                                                      guards=None)))
     opts = options or VerifyOptions()
     start = time.monotonic()
     budget = opts.budget if opts.budget is not None else Budget(opts.time_limit, opts.max_memory)
@@ -448,7 +452,8 @@ def _abstraction_first(net: FlatNet, opts: VerifyOptions) -> VerifyReport:
             else max(0.0, budget.time_limit - budget.elapsed()))
     share = (ABSTRACT_SHARE * left if has_values and left is not None else float("inf"))
     with budget.capped(share) as first:
-        abstract = verify(net, dataclasses.replace(opts, values=None, budget=budget))
+        abstract = verify(net, dataclasses.replace(opts, values=None, guards=opts.values,
+                                                   budget=budget))
     if not has_values:
         return dataclasses.replace(abstract, stop=budget.stop)
     cut_short = first.hit and abstract.verdict is not Verdict.VIOLATED

@@ -46,3 +46,33 @@ def test_a_report_with_properties_states_the_run_time_assumption() -> None:
                          capture_output=True, text=True, cwd=ROOT, timeout=300)
     assert "values tracked in the state" not in run.stdout
     assert "assuming no operation fails at run time (E802)" in run.stdout, run.stdout
+
+
+@pytest.mark.parametrize(("quick", "verdict"), [("false", "verified"), ("true", "violated")])
+def test_the_free_choices_pass_decides_a_guard_over_a_parameter(
+        tmp_path: Path, quick: str, verdict: str) -> None:
+    """The first pass takes every condition on data as a free choice, but never a
+    parameter: `switch work -> end when done and quick` with quick = false never fires, so
+    the boss waiting for every report never stalls (it was VIOLATED: the pass took the
+    switch as a free choice, and with no value to track nothing checked it again); with
+    quick = true the worker ends and the boss waits for ever, a deadlock that replays with
+    nothing forced."""
+    spec = tmp_path / "param_end.rssm"
+    spec.write_text((ROOT / "tests" / "verify" / "specs" / "param_end.rssm").read_text()
+                    .replace("param quick: bool = false", f"param quick: bool = {quick}"))
+    run = subprocess.run([sys.executable, "-m", "rssm_dsl", "verify", str(spec), "--format",
+                          "json"], capture_output=True, text=True, cwd=ROOT, timeout=300)
+    report = json.loads(run.stdout)
+    assert report["verdict"] == verdict, report
+    free = json.dumps(report["conditions"]["free_choices"])
+    assert "quick" not in free, free
+    dead = json.dumps(report["dead_transitions"])
+    assert ("done and quick" in dead) is (quick == "false"), dead
+    if verdict == "violated":
+        saved = tmp_path / "report.json"
+        saved.write_text(run.stdout)
+        replay = subprocess.run([sys.executable, "-m", "rssm_dsl", "simulate", str(spec),
+                                 "--replay", str(saved), "--format", "json"],
+                                capture_output=True, text=True, cwd=ROOT, timeout=300)
+        out = json.loads(replay.stdout)["replay"]
+        assert out["reproduced"] is True and out["forced"] == 0, out
