@@ -46,7 +46,7 @@ FEATURES: frozenset[str] = frozenset({
     *(f"channel:{t}" for t in TYPES),
     "property:always", "property:response",
     "switch:terminal", "switch:error", "switch:otherwise", "ends", "behaviours:several",
-    "effector", "receptor", "device:effector", "device:receptor",
+    "effector", "receptor", "device:effector", "device:receptor", "switch:param",
 })
 
 
@@ -88,6 +88,7 @@ class Control:
     has_flag: bool = False
     has_phase: bool = False
     behaviours: list[str] = field(default_factory=list)
+    quick: bool | None = None       # a bool parameter some switches read (None: none)
 
 
 def type_name(t: str) -> str:
@@ -100,6 +101,9 @@ class _Gen:
     def __init__(self, seed: int) -> None:
         self.seed = seed
         self.rng = random.Random(seed)
+        # the parameters' own stream: a spec without them is the one generated before
+        # they were added (the same seed, the same text)
+        self.params = random.Random(seed * 7919 + 17)
         self.features: set[str] = set()
 
     def chance(self, p: float) -> bool:
@@ -249,6 +253,10 @@ class _Gen:
         if self.chance(0.5):
             cond = terminals[0] if not c.has_flag or self.chance(0.5) \
                 else f"{terminals[0]} and flag"
+            if c.quick is not None and self.params.random() < 0.7:
+                # a guard a parameter decides: never a free choice in any pass
+                self.features.add("switch:param")
+                cond += " and quick" if self.params.random() < 0.5 else " and not quick"
             out.append(f"switch {name} -> {first} when {cond}")
             self.features.add("switch:otherwise")
             out.append(f"switch {name} -> {target()} otherwise")
@@ -268,6 +276,9 @@ class _Gen:
         if c.has_phase:
             self.features.add("memory:enum")
             lines.append(f"  memory ph: {ENUM} = {self.literal('enum')}")
+        if self.params.random() < 0.3:
+            c.quick = self.params.random() < 0.5
+            lines.append(f"  param quick: bool = {'true' if c.quick else 'false'}")
         lines += [f"  {p.decl}" for p in (*c.outputs, *c.inputs)]
         nb = self.rng.choice((1, 1, 2, 2, 3) if size <= 2 else (1, 1, 2))
         c.behaviours = [f"b{i}" for i in range(nb)]
