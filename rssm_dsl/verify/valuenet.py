@@ -106,17 +106,9 @@ class _Values:
                 for r in rel.of_guard(s)} | (extra & knowable)
         # how far each value is from what the property reads, through what computes it
         near = _distances(extra & knowable, writers, rel)
-        # breadth first, so that each value knows how far it is from what is asked
-        far = dict.fromkeys(want, 0)
-        todo = sorted(want)
-        while todo:
-            x = todo.pop(0)
-            for s in writers.get(x, []):
-                for r in rel.of_write(s, x):
-                    if r not in want:
-                        want.add(r)
-                        far[r] = far[x] + 1
-                        todo.append(r)
+        # and from the guards and the property: what they need, with what computes it
+        far = _distances(want, writers, rel)
+        want = set(far)
         # a value nothing writes... is still read; a value with a writer outside the plan
         # (e.g. an untracked producer) is written by none of the steps: it stays constant,
         # which is exact only when no transition outside the plan changes it (true by
