@@ -327,7 +327,8 @@ class _Planner:
         if s is None or behaviour is None:
             return
         beh = s.model.behaviour(behaviour)
-        compiled: dict[int, tuple[Any, tuple[str, ...]]] = {}
+        # per case, its runs: each computes some of its targets (the names it answers for)
+        compiled: dict[int, list[tuple[Any, tuple[str, ...]]]] = {}
         written: set[str] = set()
         used: set[str] = set()
         deps: dict[str, set[str]] = {}
@@ -336,14 +337,22 @@ class _Planner:
                 if case.void:
                     continue
                 run, names_ = s.compiler.case(case.body)
-                compiled[id(case)] = (run, s.reads(names_))
                 written |= set(names_)
-                case_used = _stmt_names(case.body)
-                used |= case_used
+                used |= _stmt_names(case.body)
+                # a target at a time, with the statements it depends on: one that needs an
+                # unknown value (`x := x + 0.5`, x a float) leaves only its own target
+                # unknown, not `n := n + 1` beside it
+                parts = per_target(case.body)
+                if parts is None:
+                    compiled[id(case)] = [(run, names_)]
+                    parts = [(case.body, n) for n in names_]
+                else:
+                    compiled[id(case)] = [(s.compiler.case(body)[0], (n,)) for body, n in parts]
                 # a case reads the state before the transition function (env, never
                 # another case's stage), so what it writes depends on what it reads
-                for target in s.reads(names_):
-                    deps.setdefault(target, set()).update(s.reads(case_used))
+                for body, n in parts:
+                    for target in s.reads((n,)):
+                        deps.setdefault(target, set()).update(s.reads(_stmt_names(body)))
         writes = s.reads(written)
         reads = s.reads(used)
         # a target no case of a combination writes keeps its value (its own key)
@@ -365,8 +374,9 @@ class _Planner:
             for bits in itertools.product((True, False), repeat=len(unknown_inputs)):
                 fill = dict(zip(unknown_inputs, bits, strict=True))
                 full = tuple(fill.get(k, v) for k, v in enumerate(new))
-                choices.append([compiled[id(c)] for pf in beh.functions for c in pf.cases
-                                if not c.void and case_rule.covers(c.new, full)])
+                choices.append([r for pf in beh.functions for c in pf.cases
+                                if not c.void and case_rule.covers(c.new, full)
+                                for r in compiled[id(c)]])
 
             def one(runs: list[tuple[Any, tuple[str, ...]]], values: Mapping[str, Any]
                     ) -> Outcome:
@@ -375,11 +385,14 @@ class _Planner:
                 # only its own targets unknown
                 env, stage = s.env(values), dict[str, Any]()
                 unknown: set[str] = set()
-                for r, targets in runs:
+                for r, names_ in runs:
+                    mine: dict[str, Any] = {}
                     try:
-                        r(env, stage)
+                        r(env, mine)
                     except Exception:
-                        unknown.update(targets)
+                        unknown.update(s.reads(names_))
+                        continue
+                    stage.update((n, mine[n]) for n in names_ if n in mine)
                 return {k: ANY if k in unknown else
                         _known(stage[n]) if n in stage else values.get(k, ANY)
                         for k in writes for n in [k.rpartition(".")[2]]}
@@ -440,6 +453,42 @@ class _Planner:
                 return False
             return None if unknown or v is None else True
         return Step(s.reads(used), (), _guard_outcomes(holds), holds)
+
+
+def per_target(stmts: Sequence[ast.Stmt]
+               ) -> list[tuple[tuple[ast.Stmt, ...], str]] | None:
+    """A partial function's statements split by the variable they compute: for each
+    variable assigned, its assignments up to the last and, before them, every statement
+    assigning what those read (a `let`, another target), in their order. Run alone, each
+    gives the value the whole body gives that variable (a later statement sees what an
+    earlier one assigned; nothing else changes it). None when the body assigns one
+    variable."""
+    info: list[tuple[ast.Stmt, str | None, set[str]]] = []
+    for st in stmts:
+        reads: set[str] = set()
+        assigned = st.name if isinstance(st, ast.Let) else None
+        for e, target in statement_exprs(st):
+            reads |= {n.name for n in names(e)}
+            if target is not None:
+                assigned = target
+        info.append((st, assigned, reads))
+    roots = list(dict.fromkeys(a for st, a, _ in info
+                               if isinstance(st, ast.Assign) and a is not None))
+    if len(roots) < 2:
+        return None
+    out: list[tuple[tuple[ast.Stmt, ...], str]] = []
+    for root in roots:
+        mine = [i for i, (st, a, _) in enumerate(info) if a == root and isinstance(st, ast.Assign)]
+        need = set(mine)
+        todo = list(mine)
+        while todo:                 # what a needed statement reads, assigned before it
+            j = todo.pop()
+            for i in range(j):
+                if i not in need and info[i][1] is not None and info[i][1] in info[j][2]:
+                    need.add(i)
+                    todo.append(i)
+        out.append((tuple(info[i][0] for i in sorted(need)), root))
+    return out
 
 
 def _stops(fns: Sequence[Callable[[dict[str, Any]], Any]], env: dict[str, Any]) -> bool | None:
