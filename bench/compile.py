@@ -17,13 +17,23 @@ a 100-agent system exported in under 1 s. Before the IR index (`HPN.index`, rssm
 the paged PNML and the CPN export scanned every table once per page: quadratic, 68 s and 65 s
 at 100 agents.
 
+Command: the wall time of the whole `rssmc compile FILE` (its default outputs: JSON IR, dump,
+DOT, flat PNML, written to a folder), as a user runs it, on small agents (median of a few
+runs), and the growth from the smallest size to the largest. Goal (issue 32, item 3): 5,000
+small agents in under 5 s on two cores (the outputs are made on both, rssm_dsl/emit/outputs.py).
+
     python bench/compile.py [--sizes 1,10,100,1000] [--export-sizes 25,50,100] [--repeat 3]
-    python bench/compile.py --small --sizes 500,5000 --export-sizes ''   (issue 32's agents)
+    python bench/compile.py --small --sizes 500,5000 --export-sizes ''   (issue 32's agents;
+        with --small the command table runs too: --command-sizes, 500,5000 by default)
 """
 
 from __future__ import annotations
 
 import argparse
+import os
+import statistics
+import subprocess
+import sys
 import tempfile
 import time
 import tracemalloc
@@ -134,6 +144,32 @@ def export_table(sizes: list[int], repeat: int, tmp: Path) -> None:
               + ", ".join(f"{k} x{t1[k] / t0[k]:.2f}" for k in names))
 
 
+def command_time(path: Path, out: Path) -> float:
+    """The wall time of one `rssmc compile` run (a fresh process, as a user runs it)."""
+    env = {**os.environ, "PYTHONPATH": str(Path(__file__).resolve().parent.parent)}
+    t0 = time.perf_counter()
+    subprocess.run([sys.executable, "-m", "rssm_dsl", "compile", str(path), "-o", str(out),
+                    "-q"], check=True, env=env)
+    return time.perf_counter() - t0
+
+
+def command_table(sizes: list[int], repeat: int, tmp: Path) -> None:
+    print()
+    print(f"{'agents':>7} {'rssmc compile s':>16} {'MB written':>11}")
+    rows: list[tuple[int, float]] = []
+    for n in sizes:
+        path = tmp / f"small{n}.rssm"
+        path.write_text(small_agents_system(n))
+        out = tmp / f"out{n}"
+        wall = statistics.median(command_time(path, out) for _ in range(repeat))
+        size = sum(f.stat().st_size for f in out.rglob("*") if f.is_file()) / 1e6
+        rows.append((n, wall))
+        print(f"{n:>7} {wall:>16.2f} {size:>11.1f}", flush=True)
+    if len(rows) > 1:
+        (n0, t0), (n1, t1) = rows[0], rows[-1]
+        print(f"growth {n0} -> {n1} agents: agents x{n1 / n0:.0f}, rssmc compile x{t1 / t0:.2f}")
+
+
 def main() -> None:
     ap = argparse.ArgumentParser()
     ap.add_argument("--sizes", default="1,10,100,1000", help="agents, compile table ('' skips)")
@@ -142,14 +178,22 @@ def main() -> None:
     ap.add_argument("--small", action="store_true",
                     help="compile table of small agents (rssm_dsl.synth.small_agents_system, "
                     "about 13 lines each: 5,000 agents are 1.4 MB) instead of ring systems")
+    ap.add_argument("--command-sizes", default=None,
+                    help="small agents, `rssmc compile` wall-time table ('' skips; default "
+                    "500,5000 with --small, else skipped)")
     args = ap.parse_args()
     sizes = [int(s) for s in args.sizes.split(",") if s]
+    command = args.command_sizes if args.command_sizes is not None else \
+        ("500,5000" if args.small else "")
+    command_sizes = [int(s) for s in command.split(",") if s]
     export_sizes = [int(s) for s in args.export_sizes.split(",") if s]
     with tempfile.TemporaryDirectory() as tmp:
         if sizes:
             compile_table(sizes, args.repeat, Path(tmp), args.small)
         if export_sizes:
             export_table(export_sizes, args.repeat, Path(tmp))
+        if command_sizes:
+            command_table(command_sizes, args.repeat, Path(tmp))
 
 
 if __name__ == "__main__":

@@ -53,9 +53,7 @@ def compile_cmd(
     Nothing is written when there are errors."""
 
     def run() -> int:
-        from rssm_dsl.emit import EMITTERS
-        from rssm_dsl.emit.mcc import emit_mcc
-        from rssm_dsl.emit.write import write_outputs
+        from rssm_dsl.emit.outputs import STREAMS, write_compiled
         from rssm_dsl.pipeline import compile_file
 
         one_shot()
@@ -63,21 +61,16 @@ def compile_cmd(
         if target is None:
             return EXIT_USAGE
         kinds = [k.strip() for k in emit.split(",") if k.strip()]
-        unknown = [k for k in kinds if k not in EMITTERS and k != "mcc"]
+        unknown = [k for k in kinds if k not in STREAMS]
         if unknown:
             typer.echo(f"rssmc: unknown --emit {', '.join(unknown)}; choose from "
-                       f"{', '.join([*EMITTERS, 'mcc'])}", err=True)
+                       f"{', '.join(STREAMS)}", err=True)
             return EXIT_USAGE
         comp = compile_file(file)
         report(comp, format, quiet)
         if not comp.ok or comp.hpn is None:
             return EXIT_ERRORS
-        files: dict[str, str] = {}
-        for k in kinds:
-            # mcc also writes the spec's properties: it needs the checked system
-            files.update(emit_mcc(comp.hpn, comp.system) if k == "mcc"
-                         else EMITTERS[k](comp.hpn))
-        written = write_outputs(target, files)
+        written = write_compiled(target, kinds, comp.hpn, comp.system)
         if not quiet and format is Format.text:
             h = comp.hpn
             typer.echo(f"HPN of system {h.system}: {len(h.pages)} pages, {len(h.places)} places, "

@@ -2,7 +2,8 @@
 paged), CPN Tools `.cpn` of the unflattened HPN.
 
 Each emitter is a pure function from the IR to text; EMITTERS maps an --emit name to the
-function producing {relative path: text}."""
+function producing {relative path: text}. `rssmc compile` writes the same texts in pieces as
+they are made, on two processes for a large net (rssm_dsl.emit.outputs.STREAMS)."""
 
 from __future__ import annotations
 

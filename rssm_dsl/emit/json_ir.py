@@ -5,10 +5,13 @@ indent=1)`` would (the same characters) without making that data: the standard e
 no C form with an indentation, and on a net of a few hundred thousand elements it took most
 of `rssmc compile`'s time, and ten times the text's size in memory (a list of millions of
 small strings), with the dicts of every row alive at once. Here each row is written from
-the element as it is read, and the rows are joined once."""
+the element as it is read, and the rows are joined a few thousand at a time: `rssmc
+compile` writes the pieces as they come (stream_json), never the whole text (150 MB for
+5,000 agents)."""
 
 from __future__ import annotations
 
+import itertools
 import json
 from collections.abc import Callable, Iterable, Iterator
 from json.encoder import encode_basestring_ascii
@@ -175,16 +178,29 @@ def _row_format(names: tuple[str, ...], pad: str) -> str:
             .replace("%", "%%").replace("%%s", "%s") + "\n" + pad + "}")
 
 
-def _table(fmt: str, rows: Iterable[tuple[str, ...]]) -> str:
+_CHUNK = 4096   # rows joined into one piece of a streamed table (a few hundred kB)
+
+
+def _table(fmt: str, rows: Iterable[tuple[str, ...]]) -> Iterator[str]:
     """A list of rows (``fmt``, their values' texts) as the value of a key of the top
-    object (an IR table)."""
+    object (an IR table), in pieces of a few thousand rows."""
     fmt = "  " + fmt
-    out = [fmt % row for row in rows]
-    return "[\n" + ",\n".join(out) + "\n ]" if out else "[]"
+    rows = iter(rows)
+    first = True
+    while chunk := [fmt % row for row in itertools.islice(rows, _CHUNK)]:
+        yield ("[\n" if first else ",\n") + ",\n".join(chunk)
+        first = False
+    yield "[]" if first else "\n ]"
 
 
 def json_text(hpn: HPN) -> str:
-    """``json.dumps(to_json(hpn), indent=1)``, table by table (see the module's docstring).
+    """``json.dumps(to_json(hpn), indent=1)`` (see the module's docstring)."""
+    return "".join(json_pieces(hpn))
+
+
+def json_pieces(hpn: HPN) -> Iterator[str]:
+    """``json.dumps(to_json(hpn), indent=1)`` in pieces, table by table, each table in
+    pieces of a few thousand rows (see the module's docstring).
     A value is written by the C function for strings when it is one (nearly all), by the
     encoder otherwise (written out in each row: a call per value was most of the time)."""
     encode = _encoder()
@@ -193,10 +209,18 @@ def json_text(hpn: HPN) -> str:
     op_format, cond_format = _row_format(_OPERATION, "   "), _row_format(_CONDITION, "   ")
     P, Q = "   ", "    "         # the indents of a row's values, and of its dicts' values
 
+    span_format = _row_format(("file", "line", "column", "end_line", "end_column"), P)
+
     def span(s: Span) -> str:
         got = spans.get(id(s))
         if got is None:
-            got = spans[id(s)] = encode(_span(s), P)
+            f, a, b, c, d = s.file, s.line, s.column, s.end_line, s.end_column
+            if type(f) is str and type(a) is int and type(b) is int and type(c) is int \
+                    and type(d) is int:     # (the text of an int is its str)
+                got = span_format % (E(f), a, b, c, d)
+            else:
+                got = encode(_span(s), P)
+            spans[id(s)] = got
         return got
 
     def op(o: Operation | None) -> str:
@@ -216,24 +240,36 @@ def json_text(hpn: HPN) -> str:
             encode(c.behaviour, Q), encode(list(c.new) if c.new is not None else None, Q),
             encode(c.switch, Q), encode(c.constant, Q))
 
-    def tables() -> Iterator[tuple[str, str]]:      # one at a time (see below)
+    def tables() -> Iterator[tuple[str, Iterator[str]]]:      # one at a time
+        # (the commonest values written out: None, False, strings, an enum's string value
+        # read from the member without the `value` property; the encoder for the others)
         yield "pages", _table(_row_format(_PAGE, "  "), (
-            (E(p.id) if type(p.id) is str else encode(p.id, P), encode(p.kind.value, P),
-             encode(p.layer, P), encode(p.sublayer, P), encode(p.parent, P),
-             encode(p.in_place, P), encode(p.out_place, P), encode(p.label, P),
-             encode(p.owner, P), encode(p.behaviour, P), span(p.span))
+            (E(p.id) if type(p.id) is str else encode(p.id, P),
+             E(k) if type(k := p.kind._value_) is str else encode(k, P),
+             encode(p.layer, P), encode(p.sublayer, P),
+             E(p.parent) if type(p.parent) is str else encode(p.parent, P),
+             E(p.in_place) if type(p.in_place) is str else encode(p.in_place, P),
+             E(p.out_place) if type(p.out_place) is str else encode(p.out_place, P),
+             E(p.label) if type(p.label) is str else encode(p.label, P),
+             E(p.owner) if type(p.owner) is str else encode(p.owner, P),
+             E(p.behaviour) if type(p.behaviour) is str else encode(p.behaviour, P),
+             span(p.span))
             for p in pages_in_order(hpn)))
         yield "places", _table(_row_format(_PLACE, "  "), (
             (E(p.id) if type(p.id) is str else encode(p.id, P),
              E(p.page) if type(p.page) is str else encode(p.page, P),
              E(p.label) if type(p.label) is str else encode(p.label, P),
-             encode(p.initial, P), encode(p.fusion, P), op(p.operation), span(p.span))
+             "false" if p.initial is False else encode(p.initial, P),
+             "null" if p.fusion is None else encode(p.fusion, P),
+             "null" if p.operation is None else op(p.operation),
+             spans.get(id(p.span)) or span(p.span))
             for p in hpn.places.values()))
         yield "transitions", _table(_row_format(_TRANSITION, "  "), (
             (E(t.id) if type(t.id) is str else encode(t.id, P),
              E(t.page) if type(t.page) is str else encode(t.page, P),
              E(t.label) if type(t.label) is str else encode(t.label, P),
-             encode(t.role.value, P), cond(t.condition), span(t.span))
+             E(r) if type(r := t.role._value_) is str else encode(r, P),
+             cond(t.condition), spans.get(id(t.span)) or span(t.span))
             for t in hpn.transitions.values()))
         yield "arcs", _table(_row_format(_ARC, "  "), (
             (E(a.page) if type(a.page) is str else encode(a.page, P),
@@ -245,16 +281,17 @@ def json_text(hpn: HPN) -> str:
              encode(list(f.places), P), encode(f.initial, P), span(f.span))
             for f in hpn.fusions.values()))
 
-    # each table is appended to the text as it is made (the text, the only reference to
-    # it, grows in place): not all the tables and their join at once
-    text = "{\n" + ",\n".join(f" {E(k)}: {encode(v, ' ')}" for k, v in _head(hpn).items())
+    yield "{\n" + ",\n".join(f" {E(k)}: {encode(v, ' ')}" for k, v in _head(hpn).items())
     for key, table in tables():
-        text += f",\n {E(key)}: "
-        text += table
-        del table
-    text += "\n}"
-    return text
+        yield f",\n {E(key)}: "
+        yield from table
+    yield "\n}"
 
 
 def emit_json(hpn: HPN) -> dict[str, str]:
     return {file_name(hpn.system, ".hpn.json"): json_text(hpn) + "\n"}
+
+
+def stream_json(hpn: HPN) -> Iterator[tuple[str, Iterable[str]]]:
+    """:func:`emit_json`'s file, its text in pieces (never held whole)."""
+    yield file_name(hpn.system, ".hpn.json"), itertools.chain(json_pieces(hpn), ("\n",))

@@ -2,7 +2,11 @@
 
 from __future__ import annotations
 
+from collections.abc import Iterator
+
 from rssm_dsl.hpn.ir import HPN, Page
+
+_LINES = 8192   # lines joined into one piece of a streamed text
 
 
 def pages_in_order(hpn: HPN) -> list[Page]:
@@ -15,3 +19,10 @@ def pages_in_order(hpn: HPN) -> list[Page]:
         out.append(page)
         stack.extend(reversed(ix.children(page.id)))
     return out
+
+
+def line_pieces(lines: list[str]) -> Iterator[str]:
+    """``"\\n".join(lines) + "\\n"`` in pieces of a few thousand lines (an output written
+    as it is joined, never held whole)."""
+    for k in range(0, len(lines), _LINES):
+        yield "\n".join(lines[k:k + _LINES]) + "\n"

@@ -23,10 +23,12 @@ the sub-page is written, and are filled into slots kept for them.
 
 from __future__ import annotations
 
-from rssm_dsl.emit.xmltext import Indents, attr, leaf
+from collections.abc import Iterable, Iterator, Sequence
+
+from rssm_dsl.emit.xmltext import Indents, attr, leaf, text
 from rssm_dsl.filenames import file_name
 from rssm_dsl.hpn.flat import FlatNet
-from rssm_dsl.hpn.flatten import flatten
+from rssm_dsl.hpn.flatten import flat_initial, flat_structure
 from rssm_dsl.hpn.ir import HPN, Arc, Page, Place, Transition
 
 PTNET = "http://www.pnml.org/version-2009/grammar/ptnet"
@@ -51,30 +53,89 @@ def _head(system: str, title: str) -> list[str]:
 _TAIL = ["  </net>", "</pnml>", ""]
 
 
+# a place of the flat PNML: (index, name, label); a transition: (index, name, label, the
+# indices of its input places, of its output places)
+_FlatPlace = tuple[int, str, str]
+_FlatTransition = tuple[int, str, str, Sequence[int], Sequence[int]]
+
+
 def flat_pnml(net: FlatNet) -> str:
+    return "".join(_flat_pieces(net.system, [(p.index, p.name, p.label) for p in net.places],
+                                net.initial, [(t.index, t.name, t.label, t.pre, t.post)
+                                              for t in net.transitions]))
+
+
+def flat_pnml_pieces(hpn: HPN) -> Iterator[str]:
+    """``flat_pnml(flatten(hpn))`` in pieces, from the flat net's places and arcs alone
+    (rssm_dsl.hpn.flatten.flat_structure): what the flat net binds to them (operations,
+    conditions, owners, the sites of new(x)) is not shown, so not computed."""
+    st = flat_structure(hpn)
+    places, fusions, transitions = hpn.places, hpn.fusions, hpn.transitions
+    flat_places = [(i, n, fusions[n].label if n in fusions else places[n].label)
+                   for i, n in enumerate(st.names)]
+    initial = flat_initial(hpn, st)
+    pre, post = st.pre, st.post
+    flat_transitions: list[_FlatTransition] = [
+        (i, tid, transitions[tid].label, sorted(pre[tid]), sorted(post[tid]))
+        for i, tid in enumerate(st.transitions)]
+    del st, pre, post
+    return _flat_pieces(hpn.system, flat_places, initial, flat_transitions)
+
+
+def _leaves(tag: str, attrs: str, values: list[str]) -> list[str]:
+    """``leaf(tag, attrs, v)`` of each value; when none is empty (nearly always), all
+    escaped at once and written by one format."""
+    sep = "\x00"                  # (not in XML text; if it is, value by value)
+    joined = sep.join(values)
+    if not all(values) or joined.count(sep) != len(values) - 1:
+        return [leaf(tag, attrs, v) for v in values]
+    return list(map(f"<{tag}{attrs}>%s</{tag}>".__mod__, text(joined).split(sep)))
+
+
+_LINES = 8192   # lines joined into one piece of the streamed text
+
+
+def _flat_pieces(system: str, places: list[_FlatPlace], initial: frozenset[int],
+                 transitions: list[_FlatTransition]) -> Iterator[str]:
+    """The flat PNML's text in pieces of a few thousand lines, each given as it is made."""
     pad = Indents()
     s3, s4, s5 = pad[3], pad[4], pad[5]
-    out = _head(net.system, "flattened HPN")
+    out = _head(system, "flattened HPN")
     out.append('    <page id="flat">')
+    sep = ""                               # before a piece: a line break, but at the start
     marking = f"{s4}<initialMarking>{s5}<text>1</text>{s4}</initialMarking>"
-    for p in net.places:
-        out.append(f'{s3[1:]}<place id="p{p.index}">{s4}<name>{s5}{leaf("text", "", p.name)}'
-                   f"{s4}</name>{marking if p.index in net.initial else ''}"
-                   f"{s4}{leaf('toolspecific', _TOOL, p.label)}{s3}</place>")
-    for t in net.transitions:
-        out.append(f'{s3[1:]}<transition id="t{t.index}">{s4}<name>{s5}'
-                   f'{leaf("text", "", t.name)}{s4}</name>'
-                   f"{s4}{leaf('toolspecific', _TOOL, t.label)}{s3}</transition>")
+    place_names = _leaves("text", "", [p[1] for p in places])
+    place_labels = _leaves("toolspecific", _TOOL, [p[2] for p in places])
+    for (i, _, _), name, label in zip(places, place_names, place_labels, strict=True):
+        out.append(f'{s3[1:]}<place id="p{i}">{s4}<name>{s5}{name}{s4}</name>'
+                   f"{marking if i in initial else ''}{s4}{label}{s3}</place>")
+        if len(out) >= _LINES:            # a piece is full: given, and a new one begun
+            yield sep + "\n".join(out)
+            out, sep = [], "\n"
+    del place_names, place_labels
+    names = _leaves("text", "", [t[1] for t in transitions])
+    labels = _leaves("toolspecific", _TOOL, [t[2] for t in transitions])
+    for (i, *_), name, label in zip(transitions, names, labels, strict=True):
+        out.append(f'{s3[1:]}<transition id="t{i}">{s4}<name>{s5}{name}{s4}</name>'
+                   f"{s4}{label}{s3}</transition>")
+        if len(out) >= _LINES:            # a piece is full: given, and a new one begun
+            yield sep + "\n".join(out)
+            out, sep = [], "\n"
+    del names, labels
     n = 0
-    for t in net.transitions:
-        for src in t.pre:
-            out.append(f'{s3[1:]}<arc id="a{n}" source="p{src}" target="t{t.index}" />')
+    arc = s3[1:] + '<arc id="a'
+    for i, _, _, ins, outs in transitions:
+        for src in ins:
+            out.append(f'{arc}{n}" source="p{src}" target="t{i}" />')
             n += 1
-        for dst in t.post:
-            out.append(f'{s3[1:]}<arc id="a{n}" source="t{t.index}" target="p{dst}" />')
+        for dst in outs:
+            out.append(f'{arc}{n}" source="t{i}" target="p{dst}" />')
             n += 1
+        if len(out) >= _LINES:            # a piece is full: given, and a new one begun
+            yield sep + "\n".join(out)
+            out, sep = [], "\n"
     out.append("    </page>")
-    return "\n".join(out + _TAIL)
+    yield sep + "\n".join(out + _TAIL)
 
 
 def _dropped(tr: Transition) -> bool:
@@ -212,7 +273,12 @@ def _q(value: str) -> str:
 
 
 def emit_pnml(hpn: HPN) -> dict[str, str]:
-    return {file_name(hpn.system, ".pnml"): flat_pnml(flatten(hpn))}
+    return {file_name(hpn.system, ".pnml"): "".join(flat_pnml_pieces(hpn))}
+
+
+def stream_pnml(hpn: HPN) -> Iterator[tuple[str, Iterable[str]]]:
+    """:func:`emit_pnml`'s file, its text in pieces."""
+    yield file_name(hpn.system, ".pnml"), flat_pnml_pieces(hpn)
 
 
 def emit_paged_pnml(hpn: HPN) -> dict[str, str]:

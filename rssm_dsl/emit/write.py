@@ -3,14 +3,20 @@ then moved into place; on any failure the target folder is left as it was."""
 
 from __future__ import annotations
 
+import contextlib
 import errno
 import os
 import shutil
 import tempfile
 from collections.abc import Iterable, Mapping
 from pathlib import Path
+from types import TracebackType
 
 from rssm_dsl.filenames import check_output_path
+
+# what is written to one file: its text, its bytes (a binary file), or its text in pieces
+# (a large output written as it is made, never held whole)
+Content = str | bytes | Iterable[str]
 
 
 def write_outputs(target: Path, files: Mapping[str, str | bytes],
@@ -22,37 +28,93 @@ def write_outputs(target: Path, files: Mapping[str, str | bytes],
     be a file name raises before anything is written."""
     for rel in files:
         check_output_path(rel)
-    target = target.resolve()
-    try:
-        target.parent.mkdir(parents=True, exist_ok=True)
-        staging = Path(tempfile.mkdtemp(prefix=".rssmc-", dir=target.parent))
-    except OSError as e:                  # name the user's folder, not the staging one
-        raise OSError(e.errno, e.strerror, str(target)) from e
-    try:
-        for rel, text in files.items():
-            path = staging / rel
-            path.parent.mkdir(parents=True, exist_ok=True)
-            if isinstance(text, bytes):
-                path.write_bytes(text)
-            else:
-                path.write_text(text, encoding="utf-8")
+    with Staging(target) as staging:
+        staging.folder()
+        for rel, content in files.items():
+            staging.write(rel, content)
+        return staging.commit(replace_dirs)
+
+
+class Staging:
+    """Output files staged one by one in a temporary folder beside ``target`` (made at the
+    first write), then moved into place together by :meth:`commit`. Leaving the ``with``
+    block removes the folder and whatever is still in it: after a failure, nothing of the
+    outputs is in the target. Several processes may write into the folder (:meth:`folder`
+    made before they start); the one that commits is told the names the others wrote
+    (:meth:`add`)."""
+
+    def __init__(self, target: Path) -> None:
+        self.target = target.resolve()
+        self.names: list[str] = []            # staged, in the order written (no repeats)
+        self._folder: Path | None = None
+        self._made: list[Path] = []           # the target's missing parents, made for it
+        self._committed = False
+
+    def __enter__(self) -> Staging:
+        return self
+
+    def __exit__(self, kind: type[BaseException] | None, error: BaseException | None,
+                 tb: TracebackType | None) -> None:
+        if self._folder is not None:
+            shutil.rmtree(self._folder, ignore_errors=True)
+        if not self._committed:           # a failure: the folders made for it go too
+            for parent in reversed(self._made):
+                with contextlib.suppress(OSError):
+                    parent.rmdir()
+
+    def folder(self) -> Path:
+        """The staging folder, made on first use."""
+        if self._folder is None:
+            try:
+                missing = [p for p in self.target.parents if not p.exists()]
+                self.target.parent.mkdir(parents=True, exist_ok=True)
+                self._made = missing[::-1]
+                self._folder = Path(tempfile.mkdtemp(prefix=".rssmc-", dir=self.target.parent))
+            except OSError as e:          # name the user's folder, not the staging one
+                raise OSError(e.errno, e.strerror, str(self.target)) from e
+        return self._folder
+
+    def write(self, rel: str, content: Content) -> None:
+        """Stage one file (its name checked first: rssm_dsl.filenames.check_output_path)."""
+        check_output_path(rel)
+        path = self.folder() / rel
+        path.parent.mkdir(parents=True, exist_ok=True)
+        if isinstance(content, bytes):
+            path.write_bytes(content)
+        elif isinstance(content, str):
+            path.write_text(content, encoding="utf-8")
+        else:
+            with path.open("w", encoding="utf-8") as f:     # as write_text opens it
+                f.writelines(content)
+        self.add([rel])
+
+    def add(self, names: Iterable[str]) -> None:
+        """Names of files staged by another process."""
+        for rel in names:
+            if rel not in self.names:
+                self.names.append(rel)
+
+    def commit(self, replace_dirs: Iterable[str] = ()) -> list[Path]:
+        """Move every staged file into place, after checking that each one's place is free.
+        The subfolders ``replace_dirs`` of the target are emptied first (see
+        :func:`write_outputs`). Returns the paths written, sorted."""
+        staging, target, names = self.folder(), self.target, self.names
+        self._committed = True            # (the target's folders stay, even if a move fails)
         target.mkdir(parents=True, exist_ok=True)
-        _check_places(target, files, tuple(replace_dirs))
-        for sub in replace_dirs:
+        replaced = tuple(replace_dirs)
+        _check_places(target, names, replaced)
+        for sub in replaced:
             shutil.rmtree(target / sub, ignore_errors=True)
         written: list[Path] = []
-        for rel in sorted(files):
+        for rel in sorted(names):
             dest = target / rel
             dest.parent.mkdir(parents=True, exist_ok=True)
             os.replace(staging / rel, dest)
             written.append(dest)
         return written
-    finally:
-        shutil.rmtree(staging, ignore_errors=True)
 
 
-def _check_places(target: Path, files: Mapping[str, str | bytes],
-                  replaced: tuple[str, ...]) -> None:
+def _check_places(target: Path, files: Iterable[str], replaced: tuple[str, ...]) -> None:
     """Raise before anything is moved when an output's place is taken: the file's name by a
     folder (or a FIFO, a device), or one of its folders by a file; so that a failure leaves
     the target as it was, not half written."""

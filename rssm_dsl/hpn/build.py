@@ -10,8 +10,10 @@ from __future__ import annotations
 
 from collections.abc import Sequence
 from dataclasses import field, replace
+from functools import cache
 
-from rssm_core.modes import Slot, Step, receive_net, send_net
+from rssm_core.modes import Mode, Slot, Step, receive_net, send_net
+from rssm_core.modes import Transition as ModeTransition
 from rssm_core.records import dataclass
 from rssm_dsl.hpn import names as N
 from rssm_dsl.hpn.flat import Role
@@ -402,7 +404,7 @@ class HpnBuilder:
             return places[slot]
 
         role = Role.SEND if verb == "snd" else Role.RECEIVE
-        for tr in send_net(mode) if verb == "snd" else receive_net(mode):
+        for tr in _mode_net(verb, mode):
             inputs = [place(x) for x in tr.inputs]
             outputs = [place(x) for x in tr.outputs]
             tid = self._trans(N.transition(*pb, tr.number, sup=sup), pid, buf.span,
@@ -484,6 +486,12 @@ class HpnBuilder:
 def _v(x: Subsystem | Device) -> str:
     """The designator in a fused place's name: v for a subsystem, E.h / R.l for a device."""
     return x.name if isinstance(x, Subsystem) else f"{x.letter}.{x.name}"
+
+
+@cache
+def _mode_net(verb: str, mode: Mode) -> tuple[ModeTransition, ...]:
+    """The transitions of a mode page (made once per verb and mode, not once per buffer)."""
+    return send_net(mode) if verb == "snd" else receive_net(mode)
 
 
 def build_hpn(system: System) -> HPN:

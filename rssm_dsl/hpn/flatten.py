@@ -8,6 +8,7 @@ itself (rssm_dsl/interp/program.py)."""
 
 from __future__ import annotations
 
+from rssm_core.records import dataclass
 from rssm_dsl.hpn.flat import FlatCondition, FlatNet, FlatPage, FlatPlace, FlatTransition, NewSites
 from rssm_dsl.hpn.ir import HPN, Condition, CondKind, OpKind, Page, PageKind
 
@@ -19,14 +20,68 @@ def _subsystem_of(hpn: HPN, page: str) -> tuple[str | None, str | None]:
     return p.owner, p.behaviour
 
 
+@dataclass(frozen=True, slots=True)
+class FlatStructure:
+    """The places and arcs of the flattened net, without what it binds to them: what
+    :func:`flatten` starts from, and all the flat PNML shows (rssm_dsl/emit/pnml.py)."""
+
+    flat_of: dict[str, str]            # IR place -> the flat place it is (its fusion set)
+    names: list[str]                   # the flat places' names, by index (sorted)
+    index: dict[str, int]              # flat place name -> index
+    transitions: list[str]             # the IR transitions kept, in the flat net's order
+    pre: dict[str, set[int]]           # IR transition -> its input places (indices)
+    post: dict[str, set[int]]          # IR transition -> its output places
+
+
+def flat_structure(hpn: HPN) -> FlatStructure:
+    """The places of the flattened net (a fusion set is one place; sorted by name), the
+    transitions kept (by name; a constant false condition leaves one out), and each IR
+    transition's pre- and post-set among the flat places (an arc into a page goes to its
+    input place, an arc out of a page leaves from its output place)."""
+    flat_of = {pid: place.fusion or pid for pid, place in hpn.places.items()}
+    names = sorted(set(flat_of.values()))
+    index = dict(zip(names, range(len(names)), strict=True))
+    # the flat place each node stands for as the source of an arc (a page: its output
+    # place) and as its target (a page: its input place)
+    at = dict(zip(flat_of, map(index.__getitem__, flat_of.values()), strict=True))
+    source, target = dict(at), at
+    for pid, page in hpn.pages.items():
+        out, into = page.out_place, page.in_place       # (places, unless hand-made)
+        source[pid] = at[out] if out in at and out not in hpn.pages else \
+            _resolve(hpn, pid, at, entering=False)
+        target[pid] = at[into] if into in at and into not in hpn.pages else \
+            _resolve(hpn, pid, at, entering=True)
+    pre: dict[str, set[int]] = {t: set() for t in hpn.transitions}
+    post: dict[str, set[int]] = {t: set() for t in hpn.transitions}
+    for a in hpn.arcs:
+        if a.target in pre:
+            pre[a.target].add(source[a.source])
+        else:
+            post[a.source].add(target[a.target])
+    table = hpn.transitions
+    kept = [tid for tid in sorted(table)
+            if (c := table[tid].condition) is None or c.constant is not False]
+    return FlatStructure(flat_of, names, index, kept, pre, post)
+
+
+def _resolve(hpn: HPN, node: str, at: dict[str, int], entering: bool) -> int:
+    """The flat place an arc into (``entering``) or out of a page goes to or leaves from."""
+    while node in hpn.pages:
+        page = hpn.pages[node]
+        node = page.in_place if entering else page.out_place
+    return at[node]
+
+
+def flat_initial(hpn: HPN, st: FlatStructure) -> frozenset[int]:
+    """The flat places marked initially."""
+    return frozenset(st.index[st.flat_of[p.id]] for p in hpn.places.values() if p.initial)
+
+
 def flatten(hpn: HPN) -> FlatNet:
     # (subsystem, behaviour) of each page, once per page, not once per element
     owned = {pid: _subsystem_of(hpn, pid) for pid in hpn.pages}
-    flat_of: dict[str, str] = {}
-    for pid, place in hpn.places.items():
-        flat_of[pid] = place.fusion or pid
-    names = sorted(set(flat_of.values()))
-    index = {n: i for i, n in enumerate(names)}
+    st = flat_structure(hpn)
+    flat_of, names, index, pre, post = st.flat_of, st.names, st.index, st.pre, st.post
 
     places: list[FlatPlace] = []
     for n in names:
@@ -44,27 +99,11 @@ def flatten(hpn: HPN) -> FlatNet:
                                 n if op is not None else None, sub, beh,
                                 op.channel if op is not None else None, p.page))
 
-    def resolve(node: str, entering: bool) -> str:
-        while node in hpn.pages:
-            page = hpn.pages[node]
-            node = page.in_place if entering else page.out_place
-        return flat_of[node]
-
-    pre: dict[str, set[int]] = {t: set() for t in hpn.transitions}
-    post: dict[str, set[int]] = {t: set() for t in hpn.transitions}
-    for a in hpn.arcs:
-        if a.target in pre:
-            pre[a.target].add(index[resolve(a.source, entering=False)])
-        else:
-            post[a.source].add(index[resolve(a.target, entering=True)])
-
     transitions: list[FlatTransition] = []
     conditions: list[FlatCondition] = []
     choices = _choices(hpn)
-    for tid in sorted(hpn.transitions):
+    for tid in st.transitions:
         t = hpn.transitions[tid]
-        if t.condition is not None and t.condition.constant is False:
-            continue
         if tid in choices:
             c = choices[tid]
             conditions.append(FlatCondition(len(transitions), c.kind.value, c.text,
@@ -79,7 +118,7 @@ def flatten(hpn: HPN) -> FlatNet:
             sub, beh, channel,
         ))
 
-    initial = frozenset(index[flat_of[p.id]] for p in hpn.places.values() if p.initial)
+    initial = flat_initial(hpn, st)
     final = frozenset({index[flat_of[hpn.pages[hpn.root].out_place]]})
     subsystems = tuple(sorted({p.owner for p in hpn.pages.values()
                                if p.kind.value in ("subsystem", "device")}))
