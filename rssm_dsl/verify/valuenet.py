@@ -177,8 +177,9 @@ class _Relevance:
     def __init__(self, plan: ValuePlan, knowable: set[str]) -> None:
         self.doms = plan.vars
         self.knowable = knowable
-        # per step: its knowable reads and, per valuation of them, its outcomes
-        self._runs: dict[int, tuple[list[str], dict[tuple[Any, ...], Any]] | None] = {}
+        # per step that writes: its outcomes for each valuation of its knowable reads (in
+        # the order of ``valuations``), run once for all the values it writes
+        self._runs: dict[int, list[Any]] = {}
 
     def of_guard(self, s: Step) -> tuple[str, ...]:
         assert s.holds is not None
@@ -205,10 +206,16 @@ class _Relevance:
             total *= len(self.doms[k].domain)
         if total > RELEVANCE_VALUATIONS:
             return tuple(keys)
+        vals = list(valuations(keys, {k: self.doms[k].domain for k in keys}))
+        runs: list[Any] = [None] * len(vals)
+        if s.writes:
+            if id(s) not in self._runs:
+                self._runs[id(s)] = [self._run(s, val) for val in vals]
+            runs = self._runs[id(s)]
         rows: list[tuple[tuple[Any, ...], Any]] = []
-        for val in valuations(keys, {k: self.doms[k].domain for k in keys}):
+        for val, outs in zip(vals, runs, strict=True):
             try:
-                a = answer(val, self._run(s, val) if s.writes else None)
+                a = answer(val, outs)
             except Exception:              # unknown here: an answer of its own
                 a = _UNDECIDED
             rows.append((tuple(_outcome_key(val[k]) for k in keys), a))
